@@ -1,0 +1,106 @@
+"""The entry point: ``plan(scenario, method=..., seed=...)``."""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from staghunt.checks import plan_metrics, violations
+from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
+from staghunt.result import PlanResult, Status
+from staghunt.scenario import Scenario, SolverSettings, load_scenario
+from staghunt.solvers import METHODS
+from staghunt.solvers.swarm import Progress
+
+
+def plan(
+    scenario: Scenario | str | os.PathLike[str],
+    method: str = "game",
+    seed: int = 0,
+    settings: SolverSettings | None = None,
+    progress: Progress | None = None,
+) -> PlanResult:
+    """Plan paths for the team of ``scenario`` with ``method`` (see ``staghunt.solvers.METHODS``).
+
+    ``scenario``: a :class:`Scenario`, a built-in name or a TOML path. ``settings`` overrides the
+    scenario's solver settings. One ``numpy.random.Generator`` seeded with ``seed`` drives the
+    whole run, so the same inputs and seed give the same plan.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
+    settings = settings if settings is not None else scenario.solver
+    validate_settings(settings)
+    rng = np.random.default_rng(seed)
+    t0 = time.perf_counter()
+    out = METHODS[method](scenario, settings, rng, progress)
+    wall = time.perf_counter() - t0
+    return assemble(scenario, method, seed, settings, out.waypoints, out.history,
+                    out.objective_history, out.evaluations, wall, out.leader_path)
+
+
+def validate_settings(s: SolverSettings) -> None:
+    """Raise ``ValueError`` with one clear line for unusable solver settings."""
+    checks = [
+        (isinstance(s.particles, int) and s.particles >= 1, "particles must be an integer >= 1"),
+        (isinstance(s.iterations, int) and s.iterations >= 0, "iterations must be an integer >= 0"),
+        (isinstance(s.waypoints, int) and s.waypoints >= 1, "waypoints must be an integer >= 1"),
+        (all(np.isfinite(v) and v >= 0 for v in (s.c0, s.c1, s.c2, s.damping)),
+         "c0, c1, c2 and damping must be finite and >= 0"),
+        (np.isfinite(s.velocity_fraction) and 0 < s.velocity_fraction <= 1,
+         "velocity_fraction must lie in (0, 1]"),
+    ]
+    for ok, msg in checks:
+        if not ok:
+            raise ValueError(f"solver settings: {msg}")
+
+
+def assemble(
+    scenario: Scenario,
+    method: str,
+    seed: int,
+    settings: SolverSettings,
+    waypoints: np.ndarray,
+    history: np.ndarray,
+    objective_history: np.ndarray,
+    evaluations: int,
+    wall_time_s: float,
+    leader_path: np.ndarray | None = None,
+) -> PlanResult:
+    """Evaluate, check and package a plan ``(N, K, 3)`` into an immutable :class:`PlanResult`."""
+    model = CostModel.from_scenario(scenario)
+    names = [u.name for u in scenario.team]
+    costs = evaluate(model, waypoints[None])
+    broken = violations(model, waypoints, names)
+    if broken:
+        status = Status.INFEASIBLE
+        more = f" (and {len(broken) - 3} more)" if len(broken) > 3 else ""
+        message = "infeasible: " + "; ".join(broken[:3]) + more
+    else:
+        status = Status.FEASIBLE
+        message = "feasible: all paths clear the obstacles, stay above ground and keep separation"
+    path = full_paths(model, waypoints[None])[0]
+    arrays = [np.array(waypoints), to_absolute(model.terrain, path), path[..., 2], history, objective_history]
+    for a in arrays:
+        a.setflags(write=False)
+    return PlanResult(
+        method=method,
+        seed=seed,
+        status=status,
+        message=message,
+        scenario=scenario,
+        settings=settings,
+        waypoints=arrays[0],
+        paths=arrays[1],
+        heights=arrays[2],
+        costs=costs,
+        metrics=plan_metrics(model, waypoints),
+        history=arrays[3],
+        objective_history=arrays[4],
+        evaluations=evaluations,
+        wall_time_s=wall_time_s,
+        leader_path=leader_path,
+    )

@@ -1,0 +1,108 @@
+"""The five single-UAV cost terms of paper eq. 2, as the SPSO reference computes them (MODEL.md s.4).
+
+Every function takes whole populations. Shapes: ``P`` particles, ``N`` UAVs, ``K`` free
+waypoints, ``S = K + 1`` segments, ``T`` cylinders. A full path has ``K + 2`` points.
+Terms are returned unweighted; ``inf`` marks a violated hard constraint.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def path_length(abs_path: np.ndarray) -> np.ndarray:
+    """``(P, N, K+2, 3)`` absolute path -> ``(P, N)`` total 3-D length (start and goal segments included)."""
+    d = np.diff(abs_path, axis=-2)
+    return np.sqrt(np.einsum("...c,...c->...", d, d)).sum(axis=-1)
+
+
+def segment_axis_distance(xy: np.ndarray, cylinders: np.ndarray) -> np.ndarray:
+    """Horizontal distance from each cylinder axis to each path segment.
+
+    ``xy``: ``(P, N, K+2, 2)``; ``cylinders``: ``(T, 3)``. Returns ``(P, N, S, T)``.
+    Same arithmetic as the reference's point-to-segment distance: the perpendicular distance
+    ``|det(b - a, x - a)| / |b - a|`` when the foot falls on the segment, else the nearer end;
+    a zero-length segment's distance is the distance to its point.
+    """
+    a = xy[..., :-1, None, :]  # (P, N, S, 1, 2)
+    b = xy[..., 1:, None, :]
+    x = cylinders[:, :2]  # (T, 2)
+    ab = b - a
+    d_ab = np.hypot(ab[..., 0], ab[..., 1])  # (P, N, S, 1)
+    ax = x - a
+    bx = x - b
+    d_ax = np.hypot(ax[..., 0], ax[..., 1])  # (P, N, S, T)
+    d_bx = np.hypot(bx[..., 0], bx[..., 1])
+    on_segment = ((-ab * bx).sum(-1)) * ((ab * ax).sum(-1)) >= 0
+    det = ab[..., 0] * ax[..., 1] - ab[..., 1] * ax[..., 0]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        perp = np.abs(det) / d_ab
+    dist = np.where(on_segment, perp, np.minimum(d_ax, d_bx))
+    return np.where(d_ab != 0, dist, d_ax)
+
+
+def threat_cost(
+    dist: np.ndarray, cylinders: np.ndarray, radius: np.ndarray, margin: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Threat term and obstacle violation.
+
+    ``dist``: ``(P, N, S, T)`` from :func:`segment_axis_distance`; ``radius``: ``(N,)`` body radii.
+    Per segment and cylinder: 0 beyond ``R + r + Delta``, ``inf`` strictly inside ``R + r``,
+    else ``R + r + Delta - d``. Returns ``(P, N)`` sums and ``(P, N)`` total penetration depth.
+    """
+    inner = cylinders[:, 2] + radius[:, None, None]  # (N, 1, T)
+    outer = inner + margin
+    cost = np.where(dist > outer, 0.0, np.where(dist < inner, np.inf, outer - dist))
+    depth = np.maximum(inner - dist, 0.0)
+    return cost.sum(axis=(-2, -1)), depth.sum(axis=(-2, -1))
+
+
+def altitude_cost(h: np.ndarray, h_ref: float) -> tuple[np.ndarray, np.ndarray]:
+    """``h``: ``(P, N, K)`` heights above ground of the free waypoints.
+
+    Returns the term ``sum |h - h_ref|`` (``inf`` if any ``h < 0``) and the depth below ground, both ``(P, N)``.
+    """
+    cost = np.where(h < 0, np.inf, np.abs(h - h_ref)).sum(axis=-1)
+    return cost, np.maximum(-h, 0.0).sum(axis=-1)
+
+
+def smoothness_terms(
+    abs_path: np.ndarray, turning_threshold_deg: float, climb_threshold_deg: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """Turning and climbing terms, in degrees, ``(P, N)`` each.
+
+    ``abs_path``: ``(P, N, K+2, 3)``. At every interior vertex, the turning angle between the x-y
+    projections of the segments before and after it; a zero-length projection is replaced by the
+    nearest non-zero one on its side (none: the zero segment stays). The climb angle of a segment is
+    ``atan2(dz, |dxy|)`` with ``dz`` of the real segment and ``|dxy|`` of the substituted one. An
+    angle (or climb-angle change) counts whole, only where strictly above its threshold.
+    """
+    proj = np.diff(abs_path[..., :2], axis=-2)  # (P, N, S, 2)
+    dz = np.diff(abs_path[..., 2], axis=-1)  # (P, N, S)
+    S = proj.shape[-2]
+    idx = np.arange(S)
+    nonzero = np.any(proj != 0, axis=-1)  # (P, N, S)
+    # Last non-zero projection at or before i (none -> 0), first at or after i (none -> S - 1).
+    back = np.maximum.accumulate(np.where(nonzero, idx, -1), axis=-1).clip(min=0)
+    fwd = np.flip(np.minimum.accumulate(np.flip(np.where(nonzero, idx, S), -1), axis=-1), -1)
+    fwd = fwd.clip(max=S - 1)
+    s1_idx = back[..., :-1]  # segment before vertex i+1, i = 0..S-2
+    s2_idx = fwd[..., 1:]
+    s1 = np.take_along_axis(proj, s1_idx[..., None], axis=-2)
+    s2 = np.take_along_axis(proj, s2_idx[..., None], axis=-2)
+    cross = s1[..., 0] * s2[..., 1] - s1[..., 1] * s2[..., 0]
+    dot = s1[..., 0] * s2[..., 0] + s1[..., 1] * s2[..., 1]
+    turning = np.degrees(np.arctan2(np.abs(cross), dot))
+    climb1 = np.degrees(np.arctan2(dz[..., :-1], np.hypot(s1[..., 0], s1[..., 1])))
+    climb2 = np.degrees(np.arctan2(dz[..., 1:], np.hypot(s2[..., 0], s2[..., 1])))
+    change = np.abs(climb2 - climb1)
+    turn_term = np.where(np.abs(turning) > turning_threshold_deg, np.abs(turning), 0.0).sum(-1)
+    climb_term = np.where(change > climb_threshold_deg, change, 0.0).sum(-1)
+    return turn_term, climb_term
+
+
+def weighted_sum(weights: np.ndarray, terms: np.ndarray) -> np.ndarray:
+    """``sum_i w_i * t_i`` over the last axis with ``0 * inf = 0`` (a zero weight drops a term, never a constraint)."""
+    with np.errstate(invalid="ignore"):
+        prod = weights * terms
+    return np.where(weights == 0, 0.0, prod).sum(axis=-1)

@@ -1,0 +1,348 @@
+"""``result.json``: a :class:`~staghunt.result.PlanResult` as strict JSON, written atomically.
+
+Encoding
+--------
+- The file is strict JSON (``json.dumps(..., allow_nan=False)``): it never holds the non-standard
+  tokens ``NaN``, ``Infinity`` or ``-Infinity``, so any JSON parser reads it.
+- An infinite number (an infeasible cost, the separation of a UAV flying alone, the clearance
+  without obstacles) is written as the **string** ``"inf"`` (``"-inf"`` for minus infinity). The
+  file says so itself in ``notes.infinity``. :func:`read_result` turns these strings back into
+  ``float("inf")`` in the numeric fields; :func:`decode_number` does it for one value.
+- ``NaN`` is never written: :func:`result_to_dict` raises ``ValueError`` naming the field instead.
+- Floats are written with Python's shortest round-trip ``repr`` (full precision, nothing rounded),
+  so reading the file gives back the very same ``float64`` values.
+- Keys appear in a fixed order (the order of :func:`result_to_dict`), so the same plan always
+  gives the same bytes apart from ``wall_time_s``.
+
+Layout (``N`` UAVs, ``K`` free waypoints, ``I`` iterations, ``C`` compared objectives)::
+
+    format, version, notes, method, seed, status, message, wall_time_s, evaluations,
+    settings {particles, iterations, waypoints, c0, damping, c1, c2, velocity_fraction},
+    scenario (staghunt.scenario.scenario_to_dict),
+    metrics {collision_free_waypoints, collision_free_continuous, obstacle_free,
+             min_separation_waypoints, min_separation_segments, min_clearance},
+    violations [str, ...],
+    objective_history (I + 1) x C,
+    uavs [N x {name, path (K + 2) x [x, y, z] absolute, heights (K + 2) above ground,
+               cost {total, single, formation, terms {length, threat, altitude, turning, climb},
+                     weighted_terms {...}},
+               history (I + 1) best J_n per iteration,
+               metrics {path_length, min_clearance, min_separation_waypoints,
+                        min_separation_segments, separation_limit, formation_error (K),
+                        formation_rms, min_height}}],
+    leader_path (K + 2) x [x, y, z]      (method "rigid" only)
+
+Writing is atomic: the text goes to a temporary file in the destination's directory, is flushed
+and ``fsync``-ed, then moved over the destination with ``os.replace``. On any failure (including
+``KeyboardInterrupt``) the temporary file is removed and the destination is left untouched.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+from dataclasses import fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from staghunt.costs import TERM_NAMES
+
+FORMAT = "staghunt-result/1"
+
+INFINITY_NOTE = (
+    'Strict JSON: an infinite number is written as the string "inf" ("-inf" for minus infinity); '
+    "NaN never appears. Floats are written at full precision."
+)
+_HISTORY_NOTE = (
+    "uavs[n].history[i] is UAV n's cost J_n of the best allocation after initialisation (i = 0) and "
+    "after iteration i; objective_history[i] is what the solver compared (one value per UAV for "
+    "'game', the team's summed cost for single-objective methods)."
+)
+_PATH_NOTE = (
+    "uavs[n].path holds absolute [x, y, z] from start to goal (K + 2 points, metres); "
+    "uavs[n].heights the height above ground of each point."
+)
+
+
+# ------------------------------------------------------------------------------------------------
+# Numbers
+# ------------------------------------------------------------------------------------------------
+
+
+def encode_number(value: float, where: str = "value") -> float | str:
+    """A finite float as itself, ``inf`` as ``"inf"``, ``-inf`` as ``"-inf"``; ``NaN`` raises ``ValueError``."""
+    v = float(value)
+    if math.isnan(v):
+        raise ValueError(f"{where}: NaN cannot be written to strict JSON")
+    if math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    return v
+
+
+def decode_number(value: Any) -> Any:
+    """Inverse of :func:`encode_number`: ``"inf"``/``"-inf"`` -> ``float``; anything else unchanged."""
+    if value == "inf":
+        return math.inf
+    if value == "-inf":
+        return -math.inf
+    return value
+
+
+def encode_array(a: Any, where: str) -> Any:
+    """An array (any shape) of floats as nested lists with :func:`encode_number` applied."""
+    arr = np.asarray(a, dtype=float)
+    if np.isnan(arr).any():
+        idx = tuple(int(i) for i in np.argwhere(np.isnan(arr))[0])
+        raise ValueError(f"{where}{list(idx)}: NaN cannot be written to strict JSON")
+    if arr.ndim == 0:
+        return encode_number(arr, where)
+    return _map(arr.tolist())
+
+
+def _map(obj: Any) -> Any:
+    if isinstance(obj, list):
+        return [_map(v) for v in obj]
+    return encode_number(obj)
+
+
+def _decode_tree(obj: Any) -> Any:
+    if isinstance(obj, list):
+        return [_decode_tree(v) for v in obj]
+    if isinstance(obj, dict):
+        return {k: _decode_tree(v) for k, v in obj.items()}
+    return decode_number(obj)
+
+
+def weighted_terms(weights: np.ndarray, terms: np.ndarray) -> np.ndarray:
+    """``weights * terms`` elementwise with ``0 * inf = 0`` (a zero weight drops the term)."""
+    w = np.asarray(weights, dtype=float)
+    t = np.asarray(terms, dtype=float)
+    with np.errstate(invalid="ignore"):
+        prod = w * t
+    return np.where(w == 0, 0.0, prod)
+
+
+def terms_dict(values: np.ndarray, where: str) -> dict[str, float | str]:
+    """The five J_s terms ``(5,)`` as ``{length, threat, altitude, turning, climb}``."""
+    return {name: encode_number(v, f"{where}.{name}") for name, v in zip(TERM_NAMES, values)}
+
+
+# ------------------------------------------------------------------------------------------------
+# PlanResult -> dict
+# ------------------------------------------------------------------------------------------------
+
+
+def result_to_dict(result: Any) -> dict[str, Any]:
+    """The plain-data (strict-JSON-able) form of a :class:`~staghunt.result.PlanResult`.
+
+    Raises ``ValueError`` naming the field if any value is ``NaN``.
+    """
+    # Imported here: staghunt.scenario / checks pull in the whole package.
+    import staghunt
+    from staghunt.checks import violations
+    from staghunt.costs import CostModel
+    from staghunt.scenario import scenario_to_dict
+
+    scenario = result.scenario
+    names = [u.name for u in scenario.team]
+    m = result.metrics
+    c = result.costs
+    n_uavs = len(names)
+    history = np.asarray(result.history, dtype=float)
+    model = CostModel.from_scenario(scenario)
+    broken = violations(model, np.asarray(result.waypoints, dtype=float), names)
+
+    uavs = []
+    for n, name in enumerate(names):
+        w = f"uavs[{n}]"
+        weights = scenario.team[n].weights.as_array()
+        terms = np.asarray(c.terms[0, n], dtype=float)
+        uavs.append(
+            {
+                "name": name,
+                "path": encode_array(result.paths[n], f"{w}.path"),
+                "heights": encode_array(result.heights[n], f"{w}.heights"),
+                "cost": {
+                    "total": encode_number(c.total[0, n], f"{w}.cost.total"),
+                    "single": encode_number(c.single[0, n], f"{w}.cost.single"),
+                    "formation": encode_number(c.formation[0, n], f"{w}.cost.formation"),
+                    "terms": terms_dict(terms, f"{w}.cost.terms"),
+                    "weighted_terms": terms_dict(
+                        weighted_terms(weights, terms), f"{w}.cost.weighted_terms"
+                    ),
+                },
+                "history": encode_array(history[:, n], f"{w}.history"),
+                "metrics": {
+                    key: encode_array(getattr(m, key)[n], f"{w}.metrics.{key}")
+                    for key in (
+                        "path_length",
+                        "min_clearance",
+                        "min_separation_waypoints",
+                        "min_separation_segments",
+                        "separation_limit",
+                        "formation_error",
+                        "formation_rms",
+                        "min_height",
+                    )
+                },
+            }
+        )
+
+    def overall(a: np.ndarray, where: str) -> float | str:
+        return encode_number(np.min(a) if n_uavs else math.inf, f"metrics.{where}")
+
+    out: dict[str, Any] = {
+        "format": FORMAT,
+        "version": staghunt.__version__,
+        "notes": {"infinity": INFINITY_NOTE, "paths": _PATH_NOTE, "history": _HISTORY_NOTE},
+        "method": result.method,
+        "seed": int(result.seed),
+        "status": result.status.value,
+        "message": result.message,
+        "wall_time_s": encode_number(result.wall_time_s, "wall_time_s"),
+        "evaluations": int(result.evaluations),
+        "settings": settings_to_dict(result.settings),
+        "scenario": scenario_to_dict(scenario),
+        "metrics": {
+            "collision_free_waypoints": bool(m.collision_free_waypoints),
+            "collision_free_continuous": bool(m.collision_free_continuous),
+            "obstacle_free": bool(m.obstacle_free),
+            "min_separation_waypoints": overall(m.min_separation_waypoints, "min_separation_waypoints"),
+            "min_separation_segments": overall(m.min_separation_segments, "min_separation_segments"),
+            "min_clearance": overall(m.min_clearance, "min_clearance"),
+        },
+        "violations": list(broken),
+        "objective_history": encode_array(result.objective_history, "objective_history"),
+        "uavs": uavs,
+    }
+    if result.leader_path is not None:
+        out["leader_path"] = encode_array(result.leader_path, "leader_path")
+    return out
+
+
+def settings_to_dict(settings: Any) -> dict[str, Any]:
+    """Solver settings (a :class:`~staghunt.scenario.SolverSettings`) as plain data, field order kept."""
+    out: dict[str, Any] = {}
+    for f in fields(settings):
+        v = getattr(settings, f.name)
+        out[f.name] = int(v) if isinstance(v, (int, np.integer)) and not isinstance(v, bool) else (
+            encode_number(v, f"settings.{f.name}")
+        )
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# Files
+# ------------------------------------------------------------------------------------------------
+
+
+def dumps_strict(data: Any) -> str:
+    """``json.dumps`` with ``allow_nan=False``, indent 2, keys in insertion order, trailing newline."""
+    return json.dumps(data, allow_nan=False, indent=2, ensure_ascii=False) + "\n"
+
+
+def write_json_atomic(data: Any, path: str | os.PathLike[str]) -> Path:
+    """Write ``data`` as strict JSON to ``path`` atomically (temp file, fsync, ``os.replace``).
+
+    The text is produced before any file is touched; if anything fails (or the run is
+    interrupted) the temporary file is removed and ``path`` is left as it was.
+    """
+    dest = Path(path)
+    text = dumps_strict(data)
+    directory = dest.parent if str(dest.parent) else Path(".")
+    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=directory)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            fh.write(text)
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, dest)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    _fsync_dir(directory)
+    return dest
+
+
+def _fsync_dir(directory: Path) -> None:
+    """Best effort: make the rename durable (not possible on every platform)."""
+    try:
+        fd = os.open(directory, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def write_result(result: Any, path: str | os.PathLike[str]) -> Path:
+    """Write ``result`` (a :class:`~staghunt.result.PlanResult`) to ``path`` as ``result.json``, atomically."""
+    return write_json_atomic(result_to_dict(result), path)
+
+
+def _reject_constant(token: str) -> Any:
+    raise ValueError(f"non-standard JSON number {token!r} (infinity is written as \"inf\")")
+
+
+def load_json_strict(path: str | os.PathLike[str]) -> Any:
+    """Parse a strict-JSON file; ``NaN``/``Infinity`` tokens raise ``ValueError``.
+
+    Errors (missing file, bad JSON) are ``ValueError`` / ``OSError`` with one line naming the file.
+    """
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ValueError(f"no such file {str(p)!r}") from None
+    except IsADirectoryError:
+        raise ValueError(f"{str(p)!r} is a directory, not a JSON file") from None
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{str(p)!r} is not UTF-8 text: {exc.reason}") from None
+    try:
+        return json.loads(text, parse_constant=_reject_constant)
+    except json.JSONDecodeError as exc:
+        raise ValueError(
+            f"{str(p)!r} is not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})"
+        ) from None
+    except ValueError as exc:
+        raise ValueError(f"{str(p)!r}: {exc}") from None
+
+
+_NUMERIC_TOP = ("wall_time_s", "metrics", "objective_history", "leader_path")
+_NUMERIC_UAV = ("path", "heights", "cost", "history", "metrics")
+
+
+def read_result(path: str | os.PathLike[str], *, decode_inf: bool = True) -> dict[str, Any]:
+    """Read a ``result.json``. With ``decode_inf`` the ``"inf"`` strings of the numeric fields
+    become ``float("inf")`` (the scenario and the text fields are left as written).
+
+    Raises ``ValueError`` with one line if the file is missing, not strict JSON, or not a result.
+    """
+    data = load_json_strict(path)
+    if not isinstance(data, dict) or data.get("format") != FORMAT or not isinstance(data.get("uavs"), list):
+        raise ValueError(f"{str(path)!r} is not a staghunt result file (format {FORMAT!r})")
+    if not decode_inf:
+        return data
+    out = dict(data)
+    for key in _NUMERIC_TOP:
+        if key in out:
+            out[key] = _decode_tree(out[key])
+    uavs = []
+    for u in data["uavs"]:
+        u = dict(u)
+        for key in _NUMERIC_UAV:
+            if key in u:
+                u[key] = _decode_tree(u[key])
+        uavs.append(u)
+    out["uavs"] = uavs
+    return out

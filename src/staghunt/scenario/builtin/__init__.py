@@ -1,0 +1,1 @@
+"""Built-in scenario files (``*.toml``), found with :mod:`importlib.resources`."""

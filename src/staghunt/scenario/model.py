@@ -1,0 +1,88 @@
+"""The scenario: world + team + formation + cost parameters + solver settings, all immutable."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from staghunt.task import Formation, UAV
+from staghunt.world import World
+
+
+@dataclass(frozen=True)
+class CostParams:
+    """Parameters of the cost terms (MODEL.md sections 2 and 4).
+
+    - ``danger_margin``: ``Delta`` (m), width of the penalised band around an obstacle.
+    - ``safe_distance``: ``d_s`` (m); UAVs ``n`` and ``m`` collide when closer than ``d_s + 2 r_n``.
+    - ``turning_threshold_deg`` / ``climb_threshold_deg``: a turning angle or climb-angle change
+      counts (whole) only where strictly greater than this (0 = the paper, 45 = the reference).
+    - ``desired_height``: ``h_ref`` (m above ground); ``None`` = middle of the height band.
+    - ``continuous_separation``: also require separation *between* waypoints (closest approach of
+      synchronised segments) as a constraint; the paper checks waypoints only.
+    """
+
+    danger_margin: float = 10.0
+    safe_distance: float = 2.0
+    turning_threshold_deg: float = 0.0
+    climb_threshold_deg: float = 0.0
+    desired_height: float | None = None
+    continuous_separation: bool = True
+
+
+@dataclass(frozen=True)
+class SolverSettings:
+    """Swarm settings. Paper: 2000 particles, 1500 iterations, K = 10, c0 = 0.999, c1 = c2 = 1.5.
+
+    ``damping`` multiplies the inertia ``c0`` after every iteration (the reference uses 0.98).
+    ``velocity_fraction``: velocity limit per component as a fraction of its range (0.5).
+    """
+
+    particles: int = 2000
+    iterations: int = 1500
+    waypoints: int = 10
+    c0: float = 0.999
+    damping: float = 0.98
+    c1: float = 1.5
+    c2: float = 1.5
+    velocity_fraction: float = 0.5
+
+    def with_(self, **changes: object) -> "SolverSettings":
+        """A copy with the given fields replaced (``None`` values are ignored)."""
+        return replace(self, **{k: v for k, v in changes.items() if v is not None})
+
+
+@dataclass(frozen=True, eq=False)
+class Scenario:
+    """A validated planning problem. Build it with :func:`staghunt.scenario.load_scenario`."""
+
+    name: str
+    description: str
+    world: World
+    team: tuple[UAV, ...]
+    formation: Formation
+    costs: CostParams
+    solver: SolverSettings
+
+    @property
+    def n_uavs(self) -> int:
+        return len(self.team)
+
+    @property
+    def h_ref(self) -> float:
+        if self.costs.desired_height is not None:
+            return float(self.costs.desired_height)
+        b = self.world.bounds
+        return 0.5 * (b.hmin + b.hmax)
+
+    def starts(self) -> np.ndarray:
+        """``(N, 3)`` starts as ``(x, y, h)``."""
+        return np.array([u.start for u in self.team], dtype=float)
+
+    def goals(self) -> np.ndarray:
+        """``(N, 3)`` goals as ``(x, y, h)``."""
+        return np.array([u.goal for u in self.team], dtype=float)
+
+    def with_solver(self, **changes: object) -> "Scenario":
+        return replace(self, solver=self.solver.with_(**changes))

@@ -1,0 +1,7 @@
+"""Solvers: every method is a function ``(scenario, settings, rng, progress) -> SolverOutput``
+registered in :data:`METHODS`."""
+
+from staghunt.solvers import game, rigid  # noqa: F401  (registers the methods)
+from staghunt.solvers.base import DESCRIPTIONS, METHODS, SolverOutput, register
+
+__all__ = ["DESCRIPTIONS", "METHODS", "SolverOutput", "register"]

@@ -1,0 +1,84 @@
+"""A swarm problem: how swarm particles become team paths, and what is compared.
+
+Every method is expressed as one :class:`SwarmProblem`, so that every engine (the NumPy
+reference, the compiled fast one) runs every method.
+
+Shapes: ``S`` swarms, ``N`` UAVs, ``K`` free waypoints, ``P`` particles.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+from staghunt.costs import CostModel, evaluate
+from staghunt.encoding import SearchSpace, decode, search_space
+
+
+@dataclass(frozen=True, eq=False)
+class SwarmProblem:
+    """- ``model``: the team's cost model (``N`` UAVs).
+    - ``space``: search ranges of the ``S`` swarms; ``starts``: ``(S, 3)`` where each swarm's
+      decoding starts; ``lower``/``upper``: ``(S, 3)`` decoding boxes in ``(x, y, h)``.
+    - ``member_of``: ``(N,)`` the swarm each UAV follows, or ``-1`` for a UAV whose path is fixed
+      (then ``fixed[n]`` holds its ``(K, 3)`` waypoints); ``offsets``: ``(N, 3)`` added to the
+      decoded swarm path (rigid formation), else zeros.
+    - ``objective``: ``"players"``: the compared cost vector is ``J_n`` of ``players`` (``C``
+      of them, each its own objective: Pareto dominance); ``"sum"``: one objective,
+      ``sum_n J_n`` over the whole team.
+    """
+
+    model: CostModel
+    space: SearchSpace
+    starts: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    member_of: np.ndarray
+    offsets: np.ndarray
+    objective: Literal["players", "sum"]
+    players: tuple[int, ...]
+    fixed: np.ndarray | None = None
+
+    @property
+    def n_objectives(self) -> int:
+        return len(self.players) if self.objective == "players" else 1
+
+    def team_waypoints(self, X: np.ndarray) -> np.ndarray:
+        """Spherical ``(P, S, K, 3)`` -> team free waypoints ``(P, N, K, 3)``."""
+        swarm_paths = decode(X, self.starts, self.lower, self.upper)  # (P, S, K, 3)
+        follow = np.clip(self.member_of, 0, None)
+        team = swarm_paths[:, follow] + self.offsets[None, :, None, :]
+        if self.fixed is not None:
+            team = np.where((self.member_of < 0)[None, :, None, None], self.fixed[None], team)
+        return team
+
+    def objective_values(self, total: np.ndarray) -> np.ndarray:
+        """Per-UAV ``J`` ``(P, N)`` -> compared costs ``(P, C)``."""
+        if self.objective == "sum":
+            with np.errstate(invalid="ignore"):
+                return total.sum(axis=1, keepdims=True)
+        return total[:, list(self.players)]
+
+    def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """NumPy reference evaluation: (compared cost ``(P, C)``, violation ``(P,)``, ``J`` ``(P, N)``)."""
+        c = evaluate(self.model, self.team_waypoints(X))
+        return self.objective_values(c.total), c.total_violation, c.total
+
+
+def team_problem(model: CostModel, waypoints: int, velocity_fraction: float,
+                 objective: Literal["players", "sum"] = "players") -> SwarmProblem:
+    """One swarm per UAV, each decoding from its own start (``game``, ``weighted``)."""
+    n = model.n_uavs
+    return SwarmProblem(
+        model=model,
+        space=search_space(model.starts, model.goals, waypoints, velocity_fraction),
+        starts=model.starts,
+        lower=np.broadcast_to(model.lower, (n, 3)),
+        upper=np.broadcast_to(model.upper, (n, 3)),
+        member_of=np.arange(n),
+        offsets=np.zeros((n, 3)),
+        objective=objective,
+        players=tuple(range(n)),
+    )
