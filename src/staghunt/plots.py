@@ -34,7 +34,9 @@ __all__ = [
 ]
 
 # Colour-blind-friendly, none of them close to the amber of the obstacles or the black leader.
-_UAV_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#17becf", "#e377c2", "#8c564b", "#7f7f7f")
+_UAV_COLOURS = (
+    "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#17becf", "#e377c2", "#8c564b", "#7f7f7f",
+)
 _OBSTACLE_FACE = "#f2b705"
 _OBSTACLE_EDGE = "#8a6a00"
 _LEADER = "black"
@@ -96,7 +98,9 @@ def _link_handle() -> Line2D:
     return Line2D([], [], color=_LINK, ls=":", lw=1.0, label="formation at waypoints")
 
 
-def _ground_grid(result: PlanResult, max_cells: int = 60) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _ground_grid(
+    result: PlanResult, max_cells: int = 60
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """``(X, Y, G)`` grids over the site for drawing the ground (flat: a 2 x 2 plane)."""
     b = result.scenario.world.bounds
     terrain = result.scenario.world.terrain
@@ -263,8 +267,8 @@ def plot_top_view(result: PlanResult) -> Figure:
         cbar.ax.tick_params(labelsize=_TICK)
 
     for c in scenario.world.cylinders:
-        ax.add_patch(Circle((c.x, c.y), c.radius, facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE,
-                            alpha=0.75, lw=1.2, zorder=2))
+        ax.add_patch(Circle((c.x, c.y), c.radius, facecolor=_OBSTACLE_FACE,
+                            edgecolor=_OBSTACLE_EDGE, alpha=0.75, lw=1.2, zorder=2))
         if delta > 0:
             ax.add_patch(Circle((c.x, c.y), c.radius + delta, fill=False, edgecolor=_OBSTACLE_EDGE,
                                 ls="--", lw=1.0, alpha=0.9, zorder=2))
@@ -318,6 +322,15 @@ def plot_top_view(result: PlanResult) -> Figure:
     return fig
 
 
+def _profiles_coincide(heights: np.ndarray, tol: float = 0.25) -> bool:
+    """Whether two of the ``(N, K + 2)`` height profiles lie within ``tol`` metres throughout."""
+    for a in range(heights.shape[0]):
+        for b in range(a + 1, heights.shape[0]):
+            if np.all(np.abs(heights[a] - heights[b]) < tol):
+                return True
+    return False
+
+
 def plot_altitude(result: PlanResult) -> Figure:
     """Height above ground of each UAV against the waypoint index (paper Fig. 5)."""
     scenario = result.scenario
@@ -332,12 +345,18 @@ def plot_altitude(result: PlanResult) -> Figure:
                label=f"height band [{b.hmin:g}, {b.hmax:g}] m")
     ax.axhline(scenario.h_ref, color="black", ls="--", lw=1.2,
                label=f"desired height {scenario.h_ref:g} m")
+    # Where profiles coincide (a rigid formation keeps one height), earlier UAVs are drawn wider
+    # so the identical curves show as nested bands instead of hiding each other.
+    n_uav = len(names)
+    scale = 1.0 if _profiles_coincide(heights) else 0.0
     for n, name in enumerate(names):
-        ax.plot(k, heights[n], color=uav_colour(n), lw=2.0, marker="o", ms=5, label=name)
+        wider = scale * (n_uav - 1 - n)
+        ax.plot(k, heights[n], color=uav_colour(n), lw=2.0 + 2.0 * wider, marker="o",
+                ms=5 + 2.5 * wider, label=name, zorder=2 + n)
     lead = _leader_heights(result)
     if lead is not None:
         ax.plot(np.arange(lead.size), lead, color=_LEADER, ls="--", lw=1.2, marker="x", ms=5,
-                label="virtual leader")
+                label="virtual leader", zorder=3 + n_uav)
 
     finite = heights[np.isfinite(heights)]
     low = min(0.0, b.hmin, float(finite.min()) if finite.size else 0.0)
@@ -353,7 +372,10 @@ def plot_altitude(result: PlanResult) -> Figure:
     ax.set_ylabel("height above ground (m)", fontsize=_LABEL)
     _style_axes(ax)
     fig.legend(loc="outside right upper", fontsize=_LEGEND)
-    ax.set_title(_title(result, "Altitude"), fontsize=_TITLE)
+    title = _title(result, "Altitude")
+    if scale:
+        title += "\ncoinciding profiles are drawn as nested bands (widest: first UAV)"
+    ax.set_title(title, fontsize=_TITLE if not scale else _TITLE - 1)
     return fig
 
 
@@ -377,19 +399,22 @@ def plot_convergence(result: PlanResult) -> Figure:
     names = _names(result)
     it = np.arange(history.shape[0])
 
-    fig = Figure(figsize=(9, 5.5), layout="constrained")
+    fig = Figure(figsize=(9, 6.5), layout="constrained")
     ax = fig.add_subplot()
     notes: list[str] = []
     first_marks: list[int] = []
+    drawn: list[bool] = []
 
     def curve(values: np.ndarray, label: str, **style: object) -> None:
         ok = _positive_finite(values)
         if not ok.any():
             ax.plot([], [], label=f"{label}: never finite", **style)
             return
+        drawn.append(True)
         first = int(np.argmax(ok))
         y = np.where(ok, np.log(np.where(ok, values, 1.0)), np.nan)
-        ax.plot(it, y, label=f"{label}: final {y[ok][-1]:.2f}", **style)
+        since = f", finite from iteration {first}" if first > 0 else ""
+        ax.plot(it, y, label=f"{label}: final {y[ok][-1]:.2f}{since}", **style)
         if first > 0:
             ax.plot(it[first], y[first], ls="none", marker="o", ms=8, mfc="white",
                     mec=style.get("color", "black"), mew=1.5, zorder=5)
@@ -401,7 +426,8 @@ def plot_convergence(result: PlanResult) -> Figure:
     same = objective.shape == history.shape and np.array_equal(objective, history, equal_nan=True)
     if objective.shape[0] == history.shape[0] and not same:
         for c in range(objective.shape[1]):
-            label = "team objective Σ J_n (virtual UAV)" if objective.shape[1] == 1 else f"objective {c + 1}"
+            label = ("team objective Σ J_n (virtual UAV)" if objective.shape[1] == 1
+                     else f"objective {c + 1}")
             curve(objective[:, c], label, color=_LEADER, ls="--", lw=1.6)
 
     for first in sorted(set(first_marks)):
@@ -409,15 +435,21 @@ def plot_convergence(result: PlanResult) -> Figure:
     if first_marks:
         notes.append(f"first finite at iteration {min(first_marks)}")
         ax.plot([], [], ls=":", color="0.4", marker="o", mfc="white", mec="0.4",
-                label="first finite cost (earlier: infeasible, ∞)")
+                label="first finite cost (before it: ∞, infeasible)")
 
+    if not drawn:
+        ax.text(0.5, 0.5,
+                "no finite cost in any iteration\n(every allocation found was infeasible)",
+                transform=ax.transAxes, ha="center", va="center", fontsize=_LABEL, color="0.3")
+        ax.set_yticks([])
     if history.shape[0] > 1:
         ax.set_xlim(0, it[-1])
     ax.set_xlabel("iteration", fontsize=_LABEL)
     ax.set_ylabel("ln J_n", fontsize=_LABEL)
     _style_axes(ax)
-    fig.legend(loc="outside right upper", fontsize=_LEGEND, title="best cost: final ln J",
-               title_fontsize=_LEGEND)
+    n_entries = len(ax.get_legend_handles_labels()[0])
+    fig.legend(loc="outside lower center", fontsize=_LEGEND, ncols=min(2, max(1, n_entries)),
+               title="best cost per curve (final ln J)", title_fontsize=_LEGEND)
     sub = "natural log of each UAV's best J_n"
     if notes:
         sub += "; " + "; ".join(notes)

@@ -91,7 +91,9 @@ def smoothness_terms(
     s1 = np.take_along_axis(proj, s1_idx[..., None], axis=-2)
     s2 = np.take_along_axis(proj, s2_idx[..., None], axis=-2)
     cross = s1[..., 0] * s2[..., 1] - s1[..., 1] * s2[..., 0]
-    dot = s1[..., 0] * s2[..., 0] + s1[..., 1] * s2[..., 1]
+    # "+ 0.0" turns a -0.0 into +0.0, as the reference's 3-D dot (z components +0) does: with a
+    # zero projection on one side, (0, 0).(-a, -b) = -0.0 and atan2(0, -0.0) would be 180, not 0.
+    dot = s1[..., 0] * s2[..., 0] + s1[..., 1] * s2[..., 1] + 0.0
     turning = np.degrees(np.arctan2(np.abs(cross), dot))
     climb1 = np.degrees(np.arctan2(dz[..., :-1], np.hypot(s1[..., 0], s1[..., 1])))
     climb2 = np.degrees(np.arctan2(dz[..., 1:], np.hypot(s2[..., 0], s2[..., 1])))

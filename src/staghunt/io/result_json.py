@@ -229,9 +229,10 @@ def settings_to_dict(settings: Any) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in fields(settings):
         v = getattr(settings, f.name)
-        out[f.name] = int(v) if isinstance(v, (int, np.integer)) and not isinstance(v, bool) else (
-            encode_number(v, f"settings.{f.name}")
-        )
+        if isinstance(v, (int, np.integer)) and not isinstance(v, bool):
+            out[f.name] = int(v)
+        else:
+            out[f.name] = encode_number(v, f"settings.{f.name}")
     return out
 
 
@@ -257,6 +258,7 @@ def write_json_atomic(data: Any, path: str | os.PathLike[str]) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=directory)
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
+            os.chmod(tmp, _new_file_mode(dest))
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
@@ -269,6 +271,17 @@ def write_json_atomic(data: Any, path: str | os.PathLike[str]) -> Path:
         raise
     _fsync_dir(directory)
     return dest
+
+
+def _new_file_mode(dest: Path) -> int:
+    """The mode an ordinary new file would get (``mkstemp`` creates ``0o600``); keep an existing file's."""
+    try:
+        return dest.stat().st_mode & 0o777
+    except OSError:
+        pass
+    umask = os.umask(0)
+    os.umask(umask)
+    return 0o666 & ~umask
 
 
 def _fsync_dir(directory: Path) -> None:
@@ -303,19 +316,19 @@ def load_json_strict(path: str | os.PathLike[str]) -> Any:
     try:
         text = p.read_text(encoding="utf-8")
     except FileNotFoundError:
-        raise ValueError(f"no such file {str(p)!r}") from None
+        raise ValueError(f"{p}: no such file") from None
     except IsADirectoryError:
-        raise ValueError(f"{str(p)!r} is a directory, not a JSON file") from None
+        raise ValueError(f"{p}: is a directory, not a JSON file") from None
     except UnicodeDecodeError as exc:
-        raise ValueError(f"{str(p)!r} is not UTF-8 text: {exc.reason}") from None
+        raise ValueError(f"{p}: not UTF-8 text ({exc.reason})") from None
     try:
         return json.loads(text, parse_constant=_reject_constant)
     except json.JSONDecodeError as exc:
         raise ValueError(
-            f"{str(p)!r} is not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})"
+            f"{p}: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})"
         ) from None
     except ValueError as exc:
-        raise ValueError(f"{str(p)!r}: {exc}") from None
+        raise ValueError(f"{p}: {exc}") from None
 
 
 _NUMERIC_TOP = ("wall_time_s", "metrics", "objective_history", "leader_path")
@@ -330,7 +343,7 @@ def read_result(path: str | os.PathLike[str], *, decode_inf: bool = True) -> dic
     """
     data = load_json_strict(path)
     if not isinstance(data, dict) or data.get("format") != FORMAT or not isinstance(data.get("uavs"), list):
-        raise ValueError(f"{str(path)!r} is not a staghunt result file (format {FORMAT!r})")
+        raise ValueError(f"{path}: not a staghunt result file (format {FORMAT!r})")
     if not decode_inf:
         return data
     out = dict(data)

@@ -2,6 +2,7 @@
 registered in :data:`METHODS`."""
 
 from staghunt.solvers import game, rigid  # noqa: F401  (registers the methods)
+from staghunt.solvers import independent, weighted  # noqa: F401  (registers the baselines)
 from staghunt.solvers.base import DESCRIPTIONS, METHODS, SolverOutput, register
 
 __all__ = ["DESCRIPTIONS", "METHODS", "SolverOutput", "register"]
