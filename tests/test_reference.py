@@ -7,7 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from reference_mycost import matlab_round, my_cost
+try:
+    from reference_mycost import matlab_round, my_cost
+except ImportError:  # tests/ imported as a package
+    from tests.reference_mycost import matlab_round, my_cost
 from staghunt.costs import CostModel, evaluate
 from staghunt.costs.single import segment_axis_distance
 from staghunt.scenario.model import CostParams, Scenario, SolverSettings
