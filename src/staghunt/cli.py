@@ -25,6 +25,8 @@ from typing import Any, Sequence, TextIO
 
 import numpy as np
 
+from staghunt.cli_analysis import add_commands
+
 EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_INFEASIBLE = 3
@@ -125,6 +127,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
     p.add_argument("paths", metavar="PATHS.json", help="the paths to evaluate")
     p.set_defaults(func=cmd_evaluate)
+    add_commands(sub)
     return parser
 
 

@@ -140,8 +140,8 @@ class Certificate:
             return (
                 f"epsilon-equilibrium with epsilon = {self.epsilon:.3g} relative ({self.epsilon:.2%} "
                 f"of each UAV's own cost): no UAV found a unilateral improvement larger than that "
-                f"(largest relative gap {self.max_relative_gap:.3%}, largest absolute gap "
-                f"{self.max_gap:.6g}; {budget})"
+                f"with {budget} (largest relative gap {self.max_relative_gap:.3%}, largest absolute "
+                f"gap {self.max_gap:.6g}); the search is heuristic, a larger budget may still find one"
             )
         w = self.uavs[self.worst]
         return (
@@ -184,6 +184,8 @@ def certify_plan(
     epsilon: float = DEFAULT_EPSILON,
     settings: SolverSettings | None = None,
     progress: Callable[[int, int, int, int], None] | None = None,
+    engine: Any = None,
+    threads: int | None = None,
 ) -> Certificate:
     """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
 
@@ -191,7 +193,9 @@ def certify_plan(
     (``c0``, ``damping``, ``c1``, ``c2``, ``velocity_fraction``) come from ``settings``
     (default: the scenario's). ``epsilon``: relative tolerance of the verdict.
     ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
-    Raises ``ValueError`` for unusable inputs.
+    ``engine``/``threads``: the engine of the searches (``None``: the NumPy reference loop; else
+    see :func:`staghunt.engine.get_engine`); the plan's costs are always evaluated with the NumPy
+    reference. Raises ``ValueError`` for unusable inputs.
     """
     wp = np.asarray(waypoints, dtype=float)
     if wp.ndim != 3 or wp.shape[0] != scenario.n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
@@ -207,6 +211,12 @@ def certify_plan(
         raise ValueError(f"certify iterations must be an integer >= 0, got {iterations!r}")
     if not (isinstance(epsilon, (int, float)) and math.isfinite(epsilon) and epsilon >= 0):
         raise ValueError(f"epsilon must be a finite number >= 0, got {epsilon!r}")
+    if engine is None:
+        search = run_swarm
+    else:
+        from staghunt.engine import get_engine
+
+        search = get_engine(engine, threads).run_swarm
     base = settings if settings is not None else scenario.solver
     run_settings = base.with_(particles=particles, iterations=iterations, waypoints=wp.shape[1])
     model = CostModel.from_scenario(scenario)
@@ -235,7 +245,7 @@ def certify_plan(
             def report(it: int, total: int, best: np.ndarray, _n: int = n) -> None:
                 progress(_n, len(names), it, total)
         rng = np.random.default_rng([int(seed), n])
-        out = run_swarm(problem, run_settings, rng, report, initial=initial)
+        out = search(problem, run_settings, rng, report, initial)
         best = float(out.best_cost[0])
         deviation = problem.team_waypoints(out.best[None])[0, n]
         if out.best_violation > 0 or not math.isfinite(best):
@@ -324,6 +334,8 @@ def certify_result_file(
     seed: int = 0,
     epsilon: float = DEFAULT_EPSILON,
     progress: Callable[[int, int, int, int], None] | None = None,
+    engine: Any = None,
+    threads: int | None = None,
 ) -> tuple[Certificate, dict[str, Any]]:
     """Certify the plan stored in ``path`` (a ``result.json``); returns the certificate and the
     parsed result. Notes any disagreement between the stored and the recomputed ``J_n``."""
@@ -332,7 +344,8 @@ def certify_result_file(
     data = read_result(path)
     scenario, wp, settings = plan_from_result_data(data, str(path))
     cert = certify_plan(scenario, wp, particles=particles, iterations=iterations, seed=seed,
-                        epsilon=epsilon, settings=settings, progress=progress)
+                        epsilon=epsilon, settings=settings, progress=progress,
+                        engine=engine, threads=threads)
     stored = [u.get("cost", {}).get("total") for u in data["uavs"]]
     for u, s in zip(cert.uavs, stored):
         if isinstance(s, (int, float)) and not _close(float(s), u.current):

@@ -186,6 +186,7 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     Raises ``ValueError`` with one line for anything else (negative, empty, reversed range).
     """
     out: list[int] = []
+    seen: set[int] = set()
     for part in text.split(","):
         match = _SEED_PART.fullmatch(part.strip())
         if match is None:
@@ -198,7 +199,10 @@ def parse_seeds(text: str) -> tuple[int, ...]:
             raise ValueError(f"--seeds: the range {part.strip()!r} runs backwards")
         if hi - lo > 100_000:
             raise ValueError(f"--seeds: the range {part.strip()!r} is too long")
-        out.extend(v for v in range(lo, hi + 1) if v not in out)
+        for v in range(lo, hi + 1):
+            if v not in seen:
+                seen.add(v)
+                out.append(v)
     return tuple(out)
 
 
@@ -290,7 +294,7 @@ def _check_stored_run(data: dict[str, Any], path: Path, expect: dict[str, Any]) 
         if _json_normal(data.get(key)) != expect[key]:
             what = {"settings": "solver settings", "scenario": "scenario"}.get(key, key)
             raise ValueError(
-                f"{path} was made with another {what} than this comparison asks for; "
+                f"{path} was made with a different {what} from the one this comparison asks for; "
                 "use another --out directory (or delete that file to plan it again)"
             )
 
@@ -300,7 +304,7 @@ def _check_stored_certificate(data: Any, path: Path, opts: CertifyOptions, seed:
         opts.particles, opts.iterations, seed)
     if not ok:
         raise ValueError(
-            f"{path} was made with another certificate budget than this comparison asks for; "
+            f"{path} was made with a different certificate budget from the one this comparison asks for; "
             "use another --out directory (or delete that file to certify again)"
         )
 
@@ -325,7 +329,8 @@ def run_compare(
 
     ``settings``: the budget of every method (default: the scenario's). ``certify``: the
     certificate's budget and tolerance, ``None`` to skip certificates. ``plan_options``: extra
-    keyword arguments for :func:`staghunt.plan` (e.g. an engine). Files go to ``out_dir`` (see
+    keyword arguments for :func:`staghunt.plan`; its ``engine`` and ``threads``, if any, also run
+    the certificates' searches. Files go to ``out_dir`` (see
     the module docstring); a ``KeyboardInterrupt`` leaves every finished run on disk and the
     aggregate files consistent with them. Raises ``ValueError`` for bad input.
     """
@@ -368,6 +373,7 @@ def run_compare(
         "settings": _json_normal(settings_to_dict(settings)),
         "scenario": _json_normal(scenario_to_dict(scenario)),
     }
+    engine_options = {k: v for k, v in (plan_options or {}).items() if k in ("engine", "threads")}
     jobs = [(m, s) for s in seeds for m in methods]
     # Check every stored run first, so a mismatch stops the comparison before any work.
     for m, s in jobs:
@@ -396,7 +402,8 @@ def run_compare(
             _, wp, _ = plan_from_result_data(data, str(rf))
             cert = certify_plan(scenario, wp, particles=certify.particles,
                                 iterations=certify.iterations, seed=s, epsilon=certify.epsilon,
-                                settings=settings, progress=listener.certify_progress)
+                                settings=settings, progress=listener.certify_progress,
+                                **engine_options)
             write_json_atomic(certificate_to_dict(cert), cf)
         record = record_from_files(scenario, model, rf, cf if certify is not None else None)
         records.append(record)

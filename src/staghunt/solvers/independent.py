@@ -26,6 +26,7 @@ Output, with ``I`` iterations and ``N`` UAVs:
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +64,15 @@ def solo_model(model: CostModel, n: int) -> CostModel:
     return dataclasses.replace(model, **frozen)
 
 
+def _runner(engine: Any, threads: int | None) -> Any:
+    """The ``run_swarm`` of the requested engine (``None``: the NumPy reference loop)."""
+    if engine is None:
+        return run_swarm
+    from staghunt.engine import get_engine  # imported here: staghunt.engine imports the solvers
+
+    return get_engine(engine, threads).run_swarm
+
+
 class _Offset:
     """Progress of UAV ``n``'s run reported as part of the ``N`` runs in a row."""
 
@@ -79,8 +89,14 @@ def solve_independent(
     settings: SolverSettings,
     rng: np.random.Generator,
     progress: Progress | None = None,
+    *,
+    engine: Any = None,
+    threads: int | None = None,
 ) -> SolverOutput:
+    """``engine``: ``None`` for the NumPy reference loop, else an engine or engine name for
+    :func:`staghunt.engine.get_engine` (with ``threads``)."""
     model = CostModel.from_scenario(scenario)
+    run = _runner(engine, threads)
     N, K = model.n_uavs, settings.waypoints
     waypoints = np.empty((N, K, 3))
     own = np.empty((settings.iterations + 1, N))
@@ -88,7 +104,7 @@ def solve_independent(
     for n in range(N):
         problem = team_problem(solo_model(model, n), K, settings.velocity_fraction, "players")
         report = None if progress is None else _Offset(progress, n, N, settings.iterations)
-        out = run_swarm(problem, settings, rng, report)
+        out = run(problem, settings, rng, report)
         waypoints[n] = problem.team_waypoints(out.best[None])[0, 0]
         own[:, n] = out.history[:, 0]
         evaluations += out.particle_evaluations * 1  # one UAV path varies per particle

@@ -13,6 +13,8 @@ joint evaluations of ``N`` paths each, counted as ``N`` single-UAV path evaluati
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from staghunt.costs import CostModel
@@ -28,13 +30,27 @@ def solve_weighted(
     settings: SolverSettings,
     rng: np.random.Generator,
     progress: Progress | None = None,
+    *,
+    engine: Any = None,
+    threads: int | None = None,
 ) -> SolverOutput:
+    """``engine``: ``None`` for the NumPy reference loop, else an engine or engine name for
+    :func:`staghunt.engine.get_engine` (with ``threads``)."""
     model = CostModel.from_scenario(scenario)
     problem = team_problem(model, settings.waypoints, settings.velocity_fraction, "sum")
-    out = run_swarm(problem, settings, rng, progress)
+    out = _runner(engine, threads)(problem, settings, rng, progress)
     return SolverOutput(
         waypoints=problem.team_waypoints(out.best[None])[0],
         history=out.record_history,
         objective_history=out.history,
         evaluations=out.particle_evaluations * model.n_uavs,  # N paths vary per joint particle
     )
+
+
+def _runner(engine: Any, threads: int | None) -> Any:
+    """The ``run_swarm`` of the requested engine (``None``: the NumPy reference loop)."""
+    if engine is None:
+        return run_swarm
+    from staghunt.engine import get_engine  # imported here: staghunt.engine imports the solvers
+
+    return get_engine(engine, threads).run_swarm

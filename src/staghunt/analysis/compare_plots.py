@@ -1,0 +1,173 @@
+"""The comparison figure: ``J_n`` per UAV per method (box plots, log axis) and the paths of each
+method's best seed side by side (top view).
+
+The only module of :mod:`staghunt.analysis` that imports matplotlib; it builds a
+:class:`matplotlib.figure.Figure` without ``pyplot`` (no global state). UAV colours are those of
+:mod:`staghunt.plots`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+from matplotlib.figure import Figure
+from matplotlib.lines import Line2D
+from matplotlib.patches import Circle, Patch
+
+from staghunt.analysis.compare import CompareReport, RunRecord, best_seed
+from staghunt.plots import uav_colour
+
+_METHOD_COLOURS = {
+    "game": "#1b9e77",
+    "rigid": "#d95f02",
+    "independent": "#7570b3",
+    "weighted": "#e7298a",
+}
+_OTHER = ("#66a61e", "#e6ab02", "#a6761d", "#666666")
+_OBSTACLE_FACE = "#f2b705"
+_OBSTACLE_EDGE = "#8a6a00"
+
+
+def method_colour(method: str, index: int) -> str:
+    return _METHOD_COLOURS.get(method, _OTHER[index % len(_OTHER)])
+
+
+def _box_axes(fig: Figure, report: CompareReport, records: Sequence[RunRecord]) -> None:
+    names = [u.name for u in report.scenario.team]
+    methods = [m for m in report.methods if any(r.method == m for r in records)]
+    axes = fig.subplots(1, len(names), squeeze=False)[0]
+    rng = np.random.default_rng(0)  # jitter of the points only
+    for n, (ax, name) in enumerate(zip(axes, names)):
+        data, labels, infs = [], [], []
+        for m in methods:
+            v = np.array([r.J[n] for r in records if r.method == m], dtype=float)
+            data.append(v[np.isfinite(v)])
+            infs.append(int((~np.isfinite(v)).sum()))
+            labels.append(m)
+        pos = np.arange(1, len(methods) + 1)
+        finite = [d if d.size else np.array([np.nan]) for d in data]
+        bp = ax.boxplot(finite, positions=pos, widths=0.55, patch_artist=True, showfliers=False)
+        for i, box in enumerate(bp["boxes"]):
+            box.set_facecolor(method_colour(methods[i], i))
+            box.set_alpha(0.35)
+            box.set_edgecolor(method_colour(methods[i], i))
+        for med in bp["medians"]:
+            med.set_color("black")
+        for i, d in enumerate(data):
+            if d.size:
+                x = pos[i] + rng.uniform(-0.12, 0.12, d.size)
+                ax.plot(x, d, ls="none", marker="o", ms=4.5, mfc=method_colour(methods[i], i),
+                        mec="black", mew=0.5, zorder=3)
+        ax.set_yscale("log")
+        ticks = [f"{m}\n({k}/{k + d.size} inf)" if k else m for m, k, d in zip(labels, infs, data)]
+        ax.set_xticks(pos, ticks, fontsize=10)
+        for lab, k in zip(ax.get_xticklabels(), infs):
+            if k:
+                lab.set_color("#b00020")
+        ax.set_title(f"{name}: J_n per seed", fontsize=12, color=uav_colour(n))
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+        ax.tick_params(labelsize=10)
+        if n == 0:
+            ax.set_ylabel("J_n (log scale)", fontsize=11)
+
+
+def _paths_axes(fig: Figure, report: CompareReport, records: Sequence[RunRecord]) -> None:
+    scenario = report.scenario
+    b = scenario.world.bounds
+    delta = float(scenario.costs.danger_margin)
+    names = [u.name for u in scenario.team]
+    methods = [m for m in report.methods if any(r.method == m for r in records)]
+    dom = report.data.get("dominance", {})
+    axes = fig.subplots(1, len(methods), squeeze=False)[0]
+    for i, (ax, m) in enumerate(zip(axes, methods)):
+        rec = best_seed(records, m)
+        assert rec is not None
+        for c in scenario.world.cylinders:
+            ax.add_patch(Circle((c.x, c.y), c.radius, facecolor=_OBSTACLE_FACE,
+                                edgecolor=_OBSTACLE_EDGE, alpha=0.8, lw=1.0, zorder=2))
+            if delta > 0:
+                ax.add_patch(Circle((c.x, c.y), c.radius + delta, fill=False, ls="--", lw=0.8,
+                                    edgecolor=_OBSTACLE_EDGE, alpha=0.8, zorder=2))
+        for n in range(len(names)):
+            p = rec.paths[n]
+            ax.plot(p[:, 0], p[:, 1], color=uav_colour(n), lw=1.8, marker="o", ms=2.5, zorder=4)
+            ax.plot(p[0, 0], p[0, 1], ls="none", marker="o", ms=7, mfc=uav_colour(n), mec="black", zorder=5)
+            ax.plot(p[-1, 0], p[-1, 1], ls="none", marker="*", ms=12, mfc=uav_colour(n), mec="black",
+                    mew=0.6, zorder=5)
+        ax.set_xlim(b.xmin, b.xmax)
+        ax.set_ylim(b.ymin, b.ymax)
+        ax.set_aspect("equal", adjustable="box")
+        ax.grid(True, alpha=0.3)
+        ax.tick_params(labelsize=9)
+        ax.set_xlabel("x (m)", fontsize=10)
+        if i == 0:
+            ax.set_ylabel("y (m)", fontsize=10)
+        lnsum = float(np.sum(np.log(rec.J))) if np.all(np.isfinite(rec.J)) else math.inf
+        status = "feasible" if rec.feasible else "INFEASIBLE"
+        sub = f"seed {rec.seed}, {status}"
+        sub += f", sum ln J = {lnsum:.2f}" if math.isfinite(lnsum) else ""
+        if m in dom:
+            e = dom[m]
+            sub += f"\ngame dominates it in {e['game_dominates']}/{e['compared']} seeds"
+        elif m == "game" and dom:
+            sub += "\n(reference of the dominance test)"
+        ax.set_title(f"{m}: best seed\n{sub}", fontsize=10.5, color=method_colour(m, i))
+    handles = [Line2D([], [], color=uav_colour(n), lw=2, label=name) for n, name in enumerate(names)]
+    handles += [
+        Line2D([], [], ls="none", marker="o", ms=7, mfc="white", mec="black", label="start"),
+        Line2D([], [], ls="none", marker="*", ms=11, mfc="white", mec="black", label="goal"),
+        Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, label="obstacle"),
+    ]
+    if delta > 0:
+        handles.append(Line2D([], [], ls="--", color=_OBSTACLE_EDGE, label=f"R + Δ (Δ = {delta:g} m)"))
+    fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9.5, frameon=False)
+
+
+def plot_compare(report: CompareReport) -> Figure:
+    """Box plots of ``J_n`` per UAV per method (log axis; infinite values, which a log axis
+    cannot show, are counted in red under the method's name) above the paths of each method's best seed (least violation, then least
+    ``sum_n ln J_n``)."""
+    records = report.records
+    if not records:
+        raise ValueError("no finished runs to plot")
+    n_uavs = len(report.scenario.team)
+    n_methods = len({r.method for r in records})
+    width = max(4.2 * max(n_uavs, n_methods), 10.0)
+    fig = Figure(figsize=(width, 10.5), layout="constrained")
+    top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.25])
+    _box_axes(top, report, records)
+    _paths_axes(bottom, report, records)
+    s = report.settings
+    seeds = sorted({r.seed for r in records})
+    fig.suptitle(
+        f"{report.scenario.name}: methods compared on {len(seeds)} seed(s), {s.particles} particles x "
+        f"{s.iterations} iterations (same J_n for every method)",
+        fontsize=13,
+    )
+    return fig
+
+
+def save_compare_figure(report: CompareReport, path: str | os.PathLike[str], dpi: int = 110) -> Path:
+    """Draw :func:`plot_compare` and write it to ``path`` (PNG) atomically."""
+    target = Path(path)
+    fig = plot_compare(report)
+    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.stem}.", suffix=".png.tmp")
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            fig.savefig(fh, format="png", dpi=dpi)
+        os.chmod(tmp, 0o644)
+        os.replace(tmp, target)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+    finally:
+        fig.clear()
+    return target

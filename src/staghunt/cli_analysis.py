@@ -1,0 +1,412 @@
+"""The ``staghunt compare`` and ``staghunt certify`` subcommands (parse, call the library, report).
+
+:func:`add_commands` registers both on the ``staghunt`` parser's subparsers; each handler returns
+the exit code:
+
+- ``compare``: ``0`` every run finished (whatever the plans' outcomes); ``2`` bad input;
+  ``130`` interrupted (finished runs stay on disk; the same command resumes).
+- ``certify``: ``0`` the plan is an epsilon-equilibrium; ``3`` it is not (a UAV would deviate,
+  or the plan is infeasible); ``2`` bad input; ``130`` interrupted.
+
+Bad input is reported as one line ``staghunt: error: ...`` on stderr, never a traceback.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+import numpy as np
+
+from staghunt.analysis.certify import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
+from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecord
+
+PROG = "staghunt"
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_NOT_CERTIFIED = 3
+EXIT_INTERRUPTED = 130
+
+
+def _int_at_least(low: int) -> Any:
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
+def _epsilon(text: str) -> float:
+    """``0.01`` or ``1%``: a finite relative tolerance >= 0."""
+    t = text.strip()
+    try:
+        value = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number like 0.01 or 1%, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
+_epsilon.__name__ = "epsilon"
+
+
+def add_commands(subparsers: Any) -> None:
+    """Register ``compare`` and ``certify`` on ``subparsers`` (from ``add_subparsers``)."""
+    p = subparsers.add_parser(
+        "compare",
+        help="run every method on every seed; table, dominance, Nash gaps, figure",
+        description="Plan SCENARIO with every method on every seed with the same budget, re-score "
+        "every plan with the same J_n, test whether the game allocation Pareto-dominates each "
+        "other method's (per seed), certify every plan (Nash gaps), and put the paper's Fig. 8 "
+        "numbers next to ours. Writes DIR/runs/<method>-s<seed>.json (+ .certify.json) as each "
+        "run finishes, DIR/compare.json, DIR/compare.csv and DIR/compare.png. Runs already in DIR "
+        "are not planned again, so an interrupted comparison resumes where it stopped.",
+        epilog="Budget: every method spends particles x (iterations + 1) x N single-UAV path "
+        "evaluations. Exit codes: 0 done, 2 bad input, 130 interrupted (finished runs kept).",
+    )
+    p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
+    p.add_argument("--methods", metavar="LIST", default=",".join(DEFAULT_METHODS),
+                   help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)})")
+    p.add_argument("--seeds", metavar="SEEDS", default="1-10", help="seeds, e.g. 1-10, 1,4,7 or 1-3,8 (default: 1-10)")
+    p.add_argument("--particles", type=_int_at_least(1), metavar="N", help="particles per swarm (default: the scenario's)")
+    p.add_argument("--iterations", type=_int_at_least(0), metavar="N", help="swarm iterations (default: the scenario's)")
+    p.add_argument("--waypoints", type=_int_at_least(1), metavar="N", help="free waypoints K per UAV (default: the scenario's)")
+    p.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scenario>-compare)")
+    p.add_argument("--certify-particles", type=_int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
+                   help=f"best-response search particles per UAV (default: {DEFAULT_PARTICLES})")
+    p.add_argument("--certify-iterations", type=_int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
+                   help=f"best-response search iterations per UAV (default: {DEFAULT_ITERATIONS})")
+    p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
+                   help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g})")
+    if _plan_takes_engine():
+        _engine_options(p)
+    p.add_argument("--no-certify", action="store_true", help="skip the equilibrium certificates")
+    p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.set_defaults(func=cmd_compare)
+
+    p = subparsers.add_parser(
+        "certify",
+        help="equilibrium certificate of a plan: each UAV's Nash gap",
+        description="For every UAV of the plan in RESULT.json, fix the others' paths and "
+        "re-optimise its own path on its own J_n (single-player SPSO, warm-started from its "
+        "current path, seeded). Its Nash gap is the best unilateral improvement found, absolute "
+        "and relative to its J_n. The plan is reported as an epsilon-equilibrium when every "
+        "relative gap is <= epsilon; otherwise the UAV that would deviate is named. The search "
+        "is heuristic: a gap is a lower bound on the true one.",
+        epilog="Exit codes: 0 epsilon-equilibrium, 3 not one (a UAV would deviate, or the plan is "
+        "infeasible), 2 bad input, 130 interrupted.",
+    )
+    p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
+    p.add_argument("--particles", type=_int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
+                   help=f"particles of each UAV's search (default: {DEFAULT_PARTICLES})")
+    p.add_argument("--iterations", type=_int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
+                   help=f"iterations of each UAV's search (default: {DEFAULT_ITERATIONS})")
+    p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
+                   help=f"relative tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
+    p.add_argument("--seed", type=_int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
+    p.add_argument("--out", metavar="FILE", help="also write the certificate as JSON to FILE")
+    _engine_options(p)
+    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    p.set_defaults(func=cmd_certify)
+
+
+def _plan_takes_engine() -> bool:
+    """Whether :func:`staghunt.plan` accepts ``engine`` and ``threads`` (the fast engine)."""
+    import inspect
+
+    from staghunt.api import plan
+
+    params = inspect.signature(plan).parameters
+    return "engine" in params and "threads" in params
+
+
+def _engine_options(p: argparse.ArgumentParser) -> None:
+    from staghunt.engine import ENGINE_NAMES
+
+    p.add_argument("--engine", choices=list(ENGINE_NAMES),
+                   help="engine of the swarm runs (default: the NumPy reference for certificates, "
+                   "plan()'s default for plans)")
+    p.add_argument("--threads", type=_int_at_least(1), metavar="N",
+                   help="threads of the numba engine (default: adaptive)")
+
+
+def _engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    out: dict[str, Any] = {}
+    if getattr(args, "engine", None) is not None:
+        out["engine"] = args.engine
+    if getattr(args, "threads", None) is not None:
+        out["threads"] = args.threads
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# Progress
+# ------------------------------------------------------------------------------------------------
+
+
+def _is_tty(stream: TextIO) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False
+
+
+class _Line:
+    """A status line redrawn in place on a terminal (at most ~10 times a second)."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        self.tty = _is_tty(stream)
+        self.last = -math.inf
+        self.drawn = False
+
+    def draw(self, text: str, force: bool = False) -> None:
+        if not self.tty:
+            return
+        now = time.perf_counter()
+        if not force and now - self.last < 0.1:
+            return
+        self.last = now
+        cols = shutil.get_terminal_size((80, 24)).columns
+        self.stream.write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
+        self.stream.flush()
+        self.drawn = True
+
+    def say(self, text: str) -> None:
+        """A permanent line (clears the status line first)."""
+        if self.drawn:
+            self.stream.write("\r\x1b[K")
+            self.drawn = False
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def close(self) -> None:
+        if self.drawn:
+            self.stream.write("\r\x1b[K")
+            self.stream.flush()
+            self.drawn = False
+
+
+def _g(v: float) -> str:
+    v = float(v)
+    return ("inf" if v > 0 else "-inf") if math.isinf(v) else f"{v:.4g}"
+
+
+class _CompareProgress(CompareListener):
+    """Progress of ``compare`` on stderr: one line per run; on a terminal also a live status line."""
+
+    def __init__(self, stream: TextIO, quiet: bool) -> None:
+        self.line = _Line(stream)
+        self.quiet = quiet
+        self.prefix = ""
+        self.t0 = time.perf_counter()
+
+    def run_started(self, index: int, total: int, method: str, seed: int) -> None:
+        self.prefix = f"{PROG}: [{index}/{total}] {method} seed {seed}"
+        self.t0 = time.perf_counter()
+        if not self.quiet and not self.line.tty:
+            self.line.say(f"{self.prefix}: planning")
+
+    def plan_progress(self, iteration: int, total: int, best_cost: np.ndarray) -> None:
+        if not self.quiet:
+            best = " ".join(_g(v) for v in np.atleast_1d(best_cost))
+            self.line.draw(f"{self.prefix}: planning, iteration {iteration}/{total}, best {best}",
+                           force=iteration == total)
+
+    def certify_started(self, index: int, total: int, method: str, seed: int) -> None:
+        prefix = f"{PROG}: [{index}/{total}] {method} seed {seed}"
+        if prefix != self.prefix:  # planned earlier, certified now
+            self.prefix = prefix
+            self.t0 = time.perf_counter()
+        if not self.quiet and not self.line.tty:
+            self.line.say(f"{self.prefix}: certifying")
+
+    def certify_progress(self, uav: int, n_uavs: int, iteration: int, total: int) -> None:
+        if not self.quiet:
+            self.line.draw(f"{self.prefix}: certifying UAV {uav + 1}/{n_uavs}, iteration {iteration}/{total}")
+
+    def run_finished(self, index: int, total: int, record: RunRecord, resumed: bool) -> None:
+        if self.quiet:
+            return
+        prefix = f"{PROG}: [{index}/{total}] {record.method} seed {record.seed}"
+        state = "feasible" if record.feasible else "INFEASIBLE"
+        gaps = record.nash_gaps()
+        gap = "" if gaps is None else f", max Nash gap {_pct(float(np.max(gaps[1])))}"
+        how = "found on disk" if resumed else f"{time.perf_counter() - self.t0:.1f} s"
+        self.line.say(f"{prefix}: {state}, J_n = {' '.join(_g(v) for v in record.J)}{gap} ({how})")
+
+    def close(self) -> None:
+        self.line.close()
+
+
+def _pct(v: float) -> str:
+    return "inf" if math.isinf(v) else f"{v:.2%}"
+
+
+# ------------------------------------------------------------------------------------------------
+# Handlers
+# ------------------------------------------------------------------------------------------------
+
+
+def _error(message: str) -> int:
+    text = " ".join(str(message).split())
+    print(f"{PROG}: error: {text}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def _os_reason(exc: OSError) -> str:
+    reason = exc.strerror or str(exc)
+    return f"{reason}: {exc.filename!r}" if exc.filename else reason
+
+
+def _safe_name(name: str) -> str:
+    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
+    return cleaned or "scenario"
+
+
+def _check_out_dir(out: Path) -> None:
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"output directory {str(out)!r} exists and is not a directory")
+    parent = out
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if parent.exists() and not parent.is_dir():
+        raise ValueError(f"output directory {str(out)!r} cannot be created: {str(parent)!r} is not a directory")
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    """``staghunt compare``: see :func:`staghunt.analysis.compare.run_compare`."""
+    from staghunt.analysis.compare import CertifyOptions, format_report, parse_methods, parse_seeds, run_compare
+    from staghunt.api import validate_settings
+    from staghunt.scenario import load_scenario
+
+    try:
+        methods = parse_methods(args.methods)
+        seeds = parse_seeds(args.seeds)
+        scenario = load_scenario(args.scenario)
+        settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations,
+                                         waypoints=args.waypoints)
+        validate_settings(settings)
+        out = Path(args.out) if args.out else Path("runs") / f"{_safe_name(scenario.name)}-compare"
+        _check_out_dir(out)
+    except (ValueError, OSError) as exc:
+        return _error(_os_reason(exc) if isinstance(exc, OSError) else str(exc))
+    certify = None if args.no_certify else CertifyOptions(
+        args.certify_particles, args.certify_iterations, args.epsilon)
+    total = len(methods) * len(seeds)
+    if not args.quiet:
+        cert = "no certificates" if certify is None else (
+            f"certificates {certify.particles} x {certify.iterations} per UAV")
+        print(
+            f"{PROG}: comparing {', '.join(methods)} on {scenario.name}, seeds "
+            f"{args.seeds} ({total} runs): {settings.particles} particles x {settings.iterations} "
+            f"iterations, K = {settings.waypoints}; {cert}; writing to {out}",
+            file=sys.stderr,
+        )
+    listener = _CompareProgress(sys.stderr, args.quiet)
+    try:
+        report = run_compare(scenario, out, methods=methods, seeds=seeds, settings=settings,
+                             certify=certify, listener=listener, plan_options=_engine_kwargs(args))
+    except KeyboardInterrupt:
+        listener.close()
+        done = _count_done(out, methods, seeds, certify is not None)
+        print(
+            f"{PROG}: interrupted: {done} of {total} runs finished and kept in {out} "
+            "(compare.json and compare.csv cover them); run the same command again to resume",
+            file=sys.stderr,
+        )
+        return EXIT_INTERRUPTED
+    except (ValueError, OSError) as exc:
+        listener.close()
+        return _error(_os_reason(exc) if isinstance(exc, OSError) else str(exc))
+    listener.close()
+    print(format_report(report))
+    written = [out / "compare.json", out / "compare.csv"]
+    if not args.no_figure:
+        try:
+            from staghunt.analysis.compare_plots import save_compare_figure
+
+            written.append(save_compare_figure(report, out / "compare.png"))
+        except KeyboardInterrupt:
+            raise
+        except Exception as exc:  # a plotting failure must not lose the comparison
+            print(f"{PROG}: warning: figure not written: {' '.join(str(exc).split())}", file=sys.stderr)
+    runs = f"{total} run" + ("s" if total != 1 else "")
+    print(f"wrote {', '.join(str(p) for p in written)} and {runs} in {out / 'runs'}")
+    return EXIT_OK
+
+
+def _count_done(out: Path, methods: tuple[str, ...], seeds: tuple[int, ...], certified: bool) -> int:
+    from staghunt.analysis.compare import certificate_file, run_file
+
+    return sum(
+        run_file(out, m, s).exists() and (not certified or certificate_file(out, m, s).exists())
+        for s in seeds for m in methods
+    )
+
+
+def cmd_certify(args: argparse.Namespace) -> int:
+    """``staghunt certify``: see :func:`staghunt.analysis.certify.certify_plan`."""
+    from staghunt.analysis.certify import certificate_table, certificate_to_dict, certify_result_file
+    from staghunt.io.result_json import read_result, write_json_atomic
+
+    line = _Line(sys.stderr)
+
+    def progress(uav: int, n_uavs: int, iteration: int, total: int) -> None:
+        if not args.quiet:
+            line.draw(f"{PROG}: certifying UAV {uav + 1}/{n_uavs}, iteration {iteration}/{total}",
+                      force=iteration == total)
+
+    try:
+        if args.out is not None:
+            target = Path(args.out)
+            if target.is_dir():
+                raise ValueError(f"--out {str(target)!r} is a directory; give a file name")
+            if not target.parent.is_dir() and str(target.parent):
+                raise ValueError(f"--out {str(target)!r}: no such directory {str(target.parent)!r}")
+        seed = args.seed
+        if seed is None:
+            raw_seed = read_result(args.result).get("seed", 0)
+            seed = int(raw_seed) if isinstance(raw_seed, int) and raw_seed >= 0 else 0
+        cert, data = certify_result_file(args.result, particles=args.particles,
+                                         iterations=args.iterations, seed=seed,
+                                         epsilon=args.epsilon, progress=progress,
+                                         **_engine_kwargs(args))
+    except KeyboardInterrupt:
+        line.close()
+        print(f"{PROG}: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
+    except (ValueError, OSError) as exc:
+        line.close()
+        return _error(_os_reason(exc) if isinstance(exc, OSError) else str(exc))
+    line.close()
+    print(
+        f"{args.result}: method {data.get('method')}, seed {data.get('seed')}, scenario "
+        f"{data['scenario'].get('name')}; best-response search per UAV: {cert.particles} particles "
+        f"x {cert.iterations} iterations, seed {cert.seed}"
+    )
+    print(certificate_table(cert))
+    print(f"verdict: {cert.verdict}")
+    for n in cert.notes:
+        print(f"note: {n}")
+    if args.out is not None:
+        try:
+            path = write_json_atomic(certificate_to_dict(cert), args.out)
+        except OSError as exc:
+            return _error(f"cannot write {args.out!r}: {_os_reason(exc)}")
+        print(f"wrote {path}")
+    return EXIT_OK if cert.is_equilibrium else EXIT_NOT_CERTIFIED

@@ -1,0 +1,107 @@
+"""Engines: what runs the swarm loop and evaluates costs.
+
+- ``"numpy"``: the readable batched NumPy reference (:func:`staghunt.solvers.swarm.run_swarm`,
+  :func:`staghunt.costs.evaluate`).
+- ``"numba"``: compiled kernels (:mod:`staghunt.engine.numba_engine`), one fused pass per
+  iteration, on 1 or more threads. Same semantics; agreement is tested (``tests/test_engine.py``).
+- ``"auto"``: ``"numba"`` when Numba imports, else ``"numpy"``.
+
+Every method is a :class:`~staghunt.solvers.problem.SwarmProblem` run by an engine's
+``run_swarm``, so every engine runs every method.
+"""
+
+from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from staghunt.costs import CostModel, Costs
+from staghunt.scenario.model import SolverSettings
+from staghunt.solvers.problem import SwarmProblem
+from staghunt.solvers.swarm import Progress, SwarmOutcome
+
+ENGINE_NAMES = ("auto", "numpy", "numba")
+
+
+@runtime_checkable
+class Engine(Protocol):
+    """An engine: ``name``, ``run_swarm`` (contract of :func:`staghunt.solvers.swarm.run_swarm`)
+    and ``evaluate`` (contract of :func:`staghunt.costs.evaluate`)."""
+
+    name: str
+
+    def run_swarm(
+        self,
+        problem: SwarmProblem,
+        settings: SolverSettings,
+        rng: np.random.Generator,
+        progress: Progress | None = None,
+        initial: np.ndarray | None = None,
+    ) -> SwarmOutcome: ...
+
+    def evaluate(self, model: CostModel, waypoints: np.ndarray) -> Costs: ...
+
+
+class NumpyEngine:
+    """The NumPy reference engine (``threads`` does not apply)."""
+
+    name = "numpy"
+
+    def run_swarm(
+        self,
+        problem: SwarmProblem,
+        settings: SolverSettings,
+        rng: np.random.Generator,
+        progress: Progress | None = None,
+        initial: np.ndarray | None = None,
+    ) -> SwarmOutcome:
+        from staghunt.solvers.swarm import run_swarm
+
+        return run_swarm(problem, settings, rng, progress, initial)
+
+    def evaluate(self, model: CostModel, waypoints: np.ndarray) -> Costs:
+        from staghunt.costs import evaluate
+
+        return evaluate(model, waypoints)
+
+    def __repr__(self) -> str:
+        return "NumpyEngine()"
+
+
+def numba_available() -> bool:
+    """Whether the compiled engine can be used (Numba imports)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def get_engine(engine: "str | Engine" = "auto", threads: int | None = None) -> Engine:
+    """Resolve an engine name (``"auto"``, ``"numpy"``, ``"numba"``) or pass an engine through.
+
+    ``threads``: for ``"numba"`` (and ``"auto"`` resolving to it), ``None`` = adaptive, else a
+    fixed positive count. Raises ``ValueError`` for an unknown name or a bad ``threads``.
+    """
+    if not isinstance(engine, str):
+        if not isinstance(engine, Engine):
+            raise ValueError(f"not an engine: {engine!r}")
+        return engine
+    if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
+        raise ValueError(f"threads must be a positive integer or None, not {threads!r}")
+    name = engine.lower()
+    if name == "auto":
+        name = "numba" if numba_available() else "numpy"
+    if name == "numpy":
+        return NumpyEngine()
+    if name == "numba":
+        if not numba_available():
+            raise ValueError("engine 'numba' needs the numba package (pip install numba)")
+        from staghunt.engine.numba_engine import NumbaEngine
+
+        return NumbaEngine(threads=threads)
+    raise ValueError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINE_NAMES)}")
+
+
+__all__ = ["ENGINE_NAMES", "Engine", "NumpyEngine", "get_engine", "numba_available"]

@@ -1,0 +1,232 @@
+"""The equilibrium certificate on cases whose answer is known, and ``staghunt certify``."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+
+import numpy as np
+import pytest
+
+from staghunt import plan
+from staghunt.analysis.certify import (
+    DEFAULT_EPSILON,
+    certificate_table,
+    certificate_to_dict,
+    certify_plan,
+    certify_result_file,
+)
+from staghunt.analysis.golden import reference_engine
+from staghunt.costs import CostModel, evaluate
+from staghunt.io.result_json import write_result
+from staghunt.scenario import load_scenario, scenario_from_dict
+
+K = 4
+
+
+def _uav(name, y, weights=(1.0, 1.0, 1.0, 1.0, 1.0)):
+    return {"name": name, "start": [10.0, y, 20.0], "goal": [90.0, y, 20.0], "radius": 1.0,
+            "beta": 1.0, "weights": list(weights)}
+
+
+def _scenario(team, formation=None, obstacles=()):
+    data = {
+        "name": "known",
+        "site": {"xmin": 0.0, "xmax": 100.0, "ymin": 0.0, "ymax": 100.0, "hmin": 5.0, "hmax": 35.0},
+        "obstacles": [{"x": x, "y": y, "radius": r} for x, y, r in obstacles],
+        "team": team,
+        "costs": {"desired_height": 20.0},
+        "solver": {"particles": 40, "iterations": 30, "waypoints": K},
+    }
+    if formation is not None:
+        data["formation"] = formation
+    return scenario_from_dict(data, name="known")
+
+
+def _straight(y):
+    """The optimum of a lone UAV flying along y = const at h_ref: K evenly spaced waypoints."""
+    x = 10.0 + 80.0 * np.arange(1, K + 1) / (K + 1)
+    return np.column_stack([x, np.full(K, y), np.full(K, 20.0)])
+
+
+@pytest.fixture(scope="module")
+def alone():
+    return _scenario([_uav("solo", 50.0)])
+
+
+@pytest.fixture(scope="module")
+def pair():
+    return _scenario(
+        [_uav("A", 40.0), _uav("B", 60.0)],
+        formation={"incidence": [[1], [-1]], "edge_weights": [[1.0], [1.0]]},
+    )
+
+
+def test_lone_uav_at_its_optimum_has_zero_gap(alone):
+    wp = _straight(50.0)[None]
+    J = evaluate(CostModel.from_scenario(alone), wp[None]).total[0, 0]
+    assert J == pytest.approx(80.0)  # w1 * |G - S|: no turn, no climb, at h_ref
+    cert = certify_plan(alone, wp, particles=40, iterations=30, seed=1)
+    u = cert.uavs[0]
+    assert u.current == J
+    assert 0.0 <= u.gap <= 1e-9 * J
+    assert u.roundtrip_error < 1e-12  # the warm start is the current path
+    assert cert.is_equilibrium and cert.status == "equilibrium"
+    assert cert.epsilon == DEFAULT_EPSILON == 0.01
+    assert "epsilon-equilibrium with epsilon = 0.01" in cert.verdict
+
+
+def test_perturbed_lone_uav_has_a_large_gap(alone):
+    wp = _straight(50.0)
+    wp[1, 1] += 15.0  # a 15 m detour at waypoint 2
+    cert = certify_plan(alone, wp[None], particles=40, iterations=30, seed=1)
+    u = cert.uavs[0]
+    assert u.current > 200.0
+    assert u.best < 0.6 * u.current  # the search finds most of the way back to 80
+    assert u.gap == pytest.approx(u.current - u.best)
+    assert u.relative > 0.4
+    assert not cert.is_equilibrium and cert.status == "deviation"
+    assert cert.worst == 0 and "solo would deviate" in cert.verdict
+    # The deviation found is a path with that cost.
+    model = CostModel.from_scenario(alone)
+    assert evaluate(model, u.deviation[None, None]).total[0, 0] == pytest.approx(u.best, rel=1e-12)
+
+
+def test_gap_is_never_negative_even_without_iterations(alone):
+    wp = _straight(50.0)
+    wp[2, 2] = 31.0
+    for iterations in (0, 1):
+        cert = certify_plan(alone, wp[None], particles=3, iterations=iterations, seed=5)
+        assert cert.uavs[0].gap >= 0.0 and cert.uavs[0].best <= cert.uavs[0].current
+
+
+def test_team_equilibrium_and_the_uav_that_would_deviate(pair):
+    wp = np.stack([_straight(40.0), _straight(60.0)])
+    cert = certify_plan(pair, wp, particles=40, iterations=30, seed=2)
+    assert cert.is_equilibrium
+    assert all(u.gap <= 1e-9 * u.current for u in cert.uavs)
+    wp[1, 1, 1] += 10.0  # B leaves both its straight line and the formation at waypoint 2
+    cert = certify_plan(pair, wp, particles=40, iterations=30, seed=2)
+    a, b = cert.uavs
+    assert not cert.is_equilibrium
+    assert cert.worst == 1 and "B would deviate" in cert.verdict
+    assert b.relative > 0.5
+    assert 0.0 <= a.relative < b.relative  # A would follow B a little, B would go back
+
+
+def test_certificate_is_seeded(pair):
+    wp = np.stack([_straight(40.0), _straight(60.0)])
+    wp[0, 2, 0] += 6.0
+    one = certify_plan(pair, wp, particles=15, iterations=5, seed=9)
+    two = certify_plan(pair, wp, particles=15, iterations=5, seed=9)
+    assert certificate_to_dict(one) == certificate_to_dict(two)
+
+
+def test_infeasible_plan_gets_no_certificate():
+    sc = _scenario([_uav("solo", 50.0)], obstacles=[(50.0, 50.0, 4.0)])
+    cert = certify_plan(sc, _straight(50.0)[None], particles=5, iterations=2)
+    assert cert.status == "infeasible" and not cert.is_equilibrium
+    assert math.isinf(cert.uavs[0].gap) and cert.uavs[0].best is None
+    assert "infeasible plan" in cert.verdict
+    data = certificate_to_dict(cert)
+    json.dumps(data, allow_nan=False)  # strict JSON
+    assert data["uavs"][0]["gap"] == "inf"
+    assert "inf" in certificate_table(cert)
+
+
+def test_bad_inputs_are_value_errors(alone):
+    with pytest.raises(ValueError, match="shape"):
+        certify_plan(alone, np.zeros((2, K, 3)))
+    with pytest.raises(ValueError, match="epsilon"):
+        certify_plan(alone, _straight(50.0)[None], epsilon=-1.0)
+    with pytest.raises(ValueError, match="particles"):
+        certify_plan(alone, _straight(50.0)[None], particles=0)
+
+
+# ------------------------------------------------------------------------------------------------
+# From result.json, and the command line
+# ------------------------------------------------------------------------------------------------
+
+
+def run_cli(argv: list[str]) -> int:
+    """``staghunt`` in-process: the real CLI once ``certify`` is hooked into it, else the
+    subcommands on a minimal parser with the CLI's conventions."""
+    from staghunt import cli
+
+    parser = cli.build_parser()
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    if "certify" in sub.choices:
+        return cli.main(argv)
+    from staghunt.cli_analysis import add_commands
+
+    class _Usage(Exception):
+        pass
+
+    class _Parser(argparse.ArgumentParser):
+        def error(self, message):
+            raise _Usage(message)
+
+    p = _Parser(prog="staghunt")
+    add_commands(p.add_subparsers(dest="command", required=True))
+    try:
+        args = p.parse_args(argv)
+    except _Usage as exc:
+        print(f"staghunt: error: {exc}", file=sys.stderr)
+        return 2
+    return args.func(args)
+
+
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory):
+    scenario = load_scenario("scenario2")
+    r = plan(scenario, "game", 4, scenario.solver.with_(particles=12, iterations=3, waypoints=6),
+             **reference_engine())
+    path = tmp_path_factory.mktemp("certify") / "result.json"
+    write_result(r, path)
+    return path, r
+
+
+def test_certify_result_file_reads_the_plan_back(result_file):
+    path, r = result_file
+    cert, data = certify_result_file(str(path), particles=8, iterations=3, seed=1)
+    assert [u.current for u in cert.uavs] == list(r.costs.total[0])
+    assert cert.notes == ()  # exact round trip of the warm starts, stored costs agree
+    assert data["method"] == "game"
+
+
+def test_cli_certify(result_file, tmp_path, capsys):
+    path, _ = result_file
+    out = tmp_path / "cert.json"
+    code = run_cli(["certify", str(path), "--particles", "8", "--iterations", "3", "--quiet",
+                    "--out", str(out), "--epsilon", "100%"])
+    text = capsys.readouterr().out
+    assert "verdict:" in text and "UAV1" in text
+    data = json.loads(out.read_text())
+    # With epsilon = 100 %, any finite gap passes.
+    assert code == 0 and data["status"] == "equilibrium" and data["epsilon"] == 1.0
+    code = run_cli(["certify", str(path), "--particles", "8", "--iterations", "3", "--quiet",
+                    "--epsilon", "0"])
+    assert code in (0, 3)
+    assert code == (0 if "epsilon-equilibrium with" in capsys.readouterr().out else 3)
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["certify", "no/such/result.json"],
+        ["certify", "RESULT", "--particles", "0"],
+        ["certify", "RESULT", "--epsilon", "abc"],
+        ["certify", "RESULT", "--epsilon", "-1"],
+        ["certify", "NOTRESULT"],
+    ],
+)
+def test_cli_certify_bad_input(argv, result_file, tmp_path, capsys):
+    path, _ = result_file
+    bogus = tmp_path / "bogus.json"
+    bogus.write_text('{"format": "something else"}')
+    argv = [str(path) if a == "RESULT" else str(bogus) if a == "NOTRESULT" else a for a in argv]
+    assert run_cli(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("staghunt: error: ") and err.count("\n") == 1 and "Traceback" not in err
