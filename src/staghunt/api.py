@@ -9,6 +9,7 @@ import numpy as np
 
 from staghunt.checks import plan_metrics, violations
 from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
+from staghunt.engine import Engine, get_engine
 from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.solvers import METHODS
@@ -21,12 +22,19 @@ def plan(
     seed: int = 0,
     settings: SolverSettings | None = None,
     progress: Progress | None = None,
+    engine: "str | Engine" = "auto",
+    threads: int | None = None,
 ) -> PlanResult:
     """Plan paths for the team of ``scenario`` with ``method`` (see ``staghunt.solvers.METHODS``).
 
     ``scenario``: a :class:`Scenario`, a built-in name or a TOML path. ``settings`` overrides the
     scenario's solver settings. One ``numpy.random.Generator`` seeded with ``seed`` drives the
-    whole run, so the same inputs and seed give the same plan.
+    whole run, so the same inputs, seed and engine give the same plan.
+
+    ``engine``: ``"numba"`` (compiled kernels), ``"numpy"`` (the readable reference), ``"auto"``
+    (numba if installed) or an engine object (:mod:`staghunt.engine`). The engines draw
+    different random streams, so their plans differ (statistically equivalent). ``threads``:
+    the compiled engine's thread count; ``None`` = adaptive (never slower than one thread).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -34,9 +42,10 @@ def plan(
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
     settings = settings if settings is not None else scenario.solver
     validate_settings(settings)
+    runner = get_engine(engine, threads)
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    out = METHODS[method](scenario, settings, rng, progress)
+    out = METHODS[method](scenario, settings, rng, progress, engine=runner, threads=threads)
     wall = time.perf_counter() - t0
     return assemble(scenario, method, seed, settings, out.waypoints, out.history,
                     out.objective_history, out.evaluations, wall, out.leader_path)

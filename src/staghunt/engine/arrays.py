@@ -7,6 +7,7 @@ compared objectives. Column layouts are documented in :mod:`staghunt.engine.kern
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -14,8 +15,6 @@ import numpy as np
 from staghunt.costs import CostModel
 from staghunt.engine import kernels as kn
 from staghunt.solvers.problem import SwarmProblem
-
-_SEP_REJECT_REL = 1e-9
 
 
 def _f64(a: np.ndarray) -> np.ndarray:
@@ -29,7 +28,7 @@ def _i64(a: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class ModelArrays:
     """The cost model as kernel arguments: ``uav (N, 11)``, ``weights (N, 5)``, ``cyl (T, 3)``,
-    ``heads``/``tails (M,)``, ``mu (N, M)``, ``ref_diff (M, 3)``, ``grid (R, Cg)``, ``par (14,)``."""
+    ``heads``/``tails (M,)``, ``mu (N, M)``, ``ref_diff (M, 3)``, ``grid (R, Cg)``, ``par (13,)``."""
 
     uav: np.ndarray
     weights: np.ndarray
@@ -81,8 +80,6 @@ def model_arrays(model: CostModel, c1: float = 0.0, c2: float = 0.0, team_sum: b
     par[kn.P_TERRAIN] = mode
     par[kn.P_OX], par[kn.P_OY] = float(origin[0]), float(origin[1])
     par[kn.P_CELL] = cell
-    lim_max = float(limit.max()) if N else 0.0
-    par[kn.P_SEP_REJECT] = lim_max * (1.0 + _SEP_REJECT_REL) + _SEP_REJECT_REL
     par[kn.P_C1], par[kn.P_C2] = c1, c2
     par[kn.P_SUM] = 1.0 if team_sum else 0.0
     cyl = _f64(model.cylinders).reshape(-1, 3)
@@ -101,7 +98,7 @@ def model_arrays(model: CostModel, c1: float = 0.0, c2: float = 0.0, team_sum: b
 
 @dataclass(frozen=True, eq=False)
 class SwarmArrays:
-    """How swarm particles become team paths: ``sw (S, 18)``, ``member (N,)``, ``offsets (N, 3)``,
+    """How swarm particles become team paths: ``sw (S, 22)``, ``member (N,)``, ``offsets (N, 3)``,
     ``fixed (N, K, 3)``, ``players (C,)``."""
 
     sw: np.ndarray
@@ -118,13 +115,26 @@ def swarm_arrays(problem: SwarmProblem, waypoints: int) -> SwarmArrays:
     """Flatten the decoding and team-assembly part of ``problem`` for ``K = waypoints``."""
     S = problem.space.n_swarms
     N = problem.model.n_uavs
-    sw = np.empty((S, 18))
+    sw = np.empty((S, 22))
     sw[:, 0:3] = problem.starts
     sw[:, 3:6] = np.broadcast_to(problem.lower, (S, 3))
     sw[:, 6:9] = np.broadcast_to(problem.upper, (S, 3))
     sw[:, 9:12] = problem.space.lower
     sw[:, 12:15] = problem.space.upper
     sw[:, 15:18] = problem.space.vmax
+    # The decoder's fast path: psi within pi/4 of 0, phi within pi/4 of its range centre c
+    # (always so for the encoding's ranges), sin/cos of phi by angle addition from c.
+    centre = 0.5 * (problem.space.lower[:, 2] + problem.space.upper[:, 2])
+    quarter = math.pi / 4 * (1.0 + 1e-12)
+    small = (
+        (np.abs(problem.space.lower[:, 1]) <= quarter) & (np.abs(problem.space.upper[:, 1]) <= quarter)
+        & (np.abs(problem.space.lower[:, 2] - centre) <= quarter)
+        & (np.abs(problem.space.upper[:, 2] - centre) <= quarter)
+    )
+    sw[:, 18] = small.astype(float)
+    sw[:, 19] = centre
+    sw[:, 20] = np.sin(centre)
+    sw[:, 21] = np.cos(centre)
     fixed = np.zeros((N, waypoints, 3)) if problem.fixed is None else _f64(problem.fixed)
     players = np.zeros(1, dtype=np.int64) if problem.objective == "sum" else _i64(problem.players)
     return SwarmArrays(

@@ -1,6 +1,10 @@
 """Scalar building blocks of the compiled engine: vectorisable sin/cos and atan2, a counter-based
 random generator and NumPy's pairwise summation order.
 
+Uniform numbers are made without integer-to-float conversion (which AVX2 lacks for 64-bit
+integers): random bits are written as the mantissa of a double in ``[1, 2)`` into a ``uint64``
+buffer that the kernels read back through a ``float64`` view, minus 1.
+
 Everything here is compiled by Numba without ``fastmath`` (IEEE semantics: comparisons with
 ``inf`` and signed zeros behave as in NumPy). The polynomial ``sincos`` and ``atan2`` are the
 Cephes ones (relative error below ~2 ulp); unlike calls into ``libm`` they contain no function
@@ -39,10 +43,23 @@ _U64_30 = np.uint64(30)
 _U64_27 = np.uint64(27)
 _U64_31 = np.uint64(31)
 _U64_32 = np.uint64(32)
-_U64_11 = np.uint64(11)
+_U64_12 = np.uint64(12)
+_U64_20 = np.uint64(20)
+_U64_ONE_BITS = np.uint64(0x3FF0000000000000)  # the bits of 1.0
 _U64_LOW32 = np.uint64(0xFFFFFFFF)
-_2POW_M32 = 2.0**-32
-_2POW_M53 = 2.0**-53
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def sincos_small(r: float) -> tuple[float, float]:
+    """``(sin r, cos r)`` to ~1 ulp for ``|r| <= pi/4`` (no range reduction; the Cephes kernels)."""
+    z = r * r
+    ps = ((((1.58962301576546568060e-10 * z - 2.50507477628578072866e-8) * z
+            + 2.75573136213857245213e-6) * z - 1.98412698295895385996e-4) * z
+          + 8.33333333332211858878e-3) * z - 1.66666666666666307295e-1
+    pc = ((((-1.13585365213876817300e-11 * z + 2.08757008419747316778e-9) * z
+             - 2.75573141792967388112e-7) * z + 2.48015872888517045348e-5) * z
+          - 1.38888888888730564116e-3) * z + 4.16666666666665929218e-2
+    return r + r * z * ps, 1.0 - 0.5 * z + z * z * pc
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -51,16 +68,7 @@ def sincos(x: float) -> tuple[float, float]:
     polynomials, branch-free so that loops over particles vectorise. The encoding's angles stay
     within a few radians."""
     q = math.floor(x * _TWO_OVER_PI + 0.5)
-    r = ((x - q * _PIO2_1) - q * _PIO2_2) - q * _PIO2_3
-    z = r * r
-    ps = ((((1.58962301576546568060e-10 * z - 2.50507477628578072866e-8) * z
-            + 2.75573136213857245213e-6) * z - 1.98412698295895385996e-4) * z
-          + 8.33333333332211858878e-3) * z - 1.66666666666666307295e-1
-    s = r + r * z * ps
-    pc = ((((-1.13585365213876817300e-11 * z + 2.08757008419747316778e-9) * z
-             - 2.75573141792967388112e-7) * z + 2.48015872888517045348e-5) * z
-          - 1.38888888888730564116e-3) * z + 4.16666666666665929218e-2
-    c = 1.0 - 0.5 * z + z * z * pc
+    s, c = sincos_small(((x - q * _PIO2_1) - q * _PIO2_2) - q * _PIO2_3)
     m = q - 4.0 * math.floor(q * 0.25)  # quadrant 0..3, exact
     odd = m == 1.0 or m == 3.0
     sin_x = c if odd else s
@@ -83,10 +91,11 @@ def atan2(y: float, x: float) -> float:
     ay = abs(y)
     swap = ay > ax
     num = ax if swap else ay
-    den = ay if swap else ax
-    a = num / den if den > 0.0 else 0.0  # in [0, 1]
-    big = a > 0.66
-    t = (a - 1.0) / (a + 1.0) if big else a
+    den = ay if swap else ax  # num / den in [0, 1]
+    big = num > 0.66 * den
+    # One division: t = num / den, or for num / den > 0.66 Cephes' (a - 1) / (a + 1) formed
+    # directly as (num - den) / (num + den).
+    t = ((num - den) if big else num) / ((num + den) if big else den) if den > 0.0 else 0.0
     z = t * t
     p = (((-8.750608600031904122785e-1 * z - 1.615753718733365076637e1) * z
           - 7.500855792314704667340e1) * z - 1.228866684490136173410e2) * z - 6.485021904942025371773e1
@@ -118,17 +127,16 @@ def counter_hash(key: np.uint64, counter: np.uint64) -> np.uint64:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def uniform53(h: np.uint64) -> float:
-    """A hash -> uniform double in ``[0, 1)`` with 53 random bits."""
-    return np.float64(np.int64(h >> _U64_11)) * _2POW_M53
+def unit_bits(h: np.uint64) -> np.uint64:
+    """The bits of a double in ``[1, 2)`` with the hash's top 52 bits as mantissa (view the
+    stored value as float64 and subtract 1: a uniform in ``[0, 1)`` with 52 random bits)."""
+    return (h >> _U64_12) | _U64_ONE_BITS
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def uniform_pair(h: np.uint64) -> tuple[float, float]:
-    """A hash -> two uniform doubles in ``[0, 1)`` with 32 random bits each (PSO's ``r1``, ``r2``)."""
-    hi = np.float64(np.int64(h >> _U64_32)) * _2POW_M32
-    lo = np.float64(np.int64(h & _U64_LOW32)) * _2POW_M32
-    return hi, lo
+def unit_bits_pair(h: np.uint64) -> tuple[np.uint64, np.uint64]:
+    """Two such bit patterns from one hash, with its high and low 32 bits (PSO's ``r1``, ``r2``)."""
+    return ((h >> _U64_32) << _U64_20) | _U64_ONE_BITS, ((h & _U64_LOW32) << _U64_20) | _U64_ONE_BITS
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -159,29 +167,3 @@ def pairwise_lanes(vals: np.ndarray, n: int, nb: int, out: np.ndarray) -> None:
     for i in range(m, n):
         for b in range(nb):
             out[b] += vals[i, b]
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def pairwise_sum(vals: np.ndarray, n: int) -> float:
-    """``sum(vals[:n])`` in NumPy's pairwise order (``n <= 128``; sequential beyond). ``vals``: ``(>= n,)``."""
-    if n < 8 or n > 128:
-        res = 0.0
-        for i in range(n):
-            res += vals[i]
-        return res
-    r0, r1, r2, r3 = vals[0], vals[1], vals[2], vals[3]
-    r4, r5, r6, r7 = vals[4], vals[5], vals[6], vals[7]
-    m = n - n % 8
-    for i in range(8, m, 8):
-        r0 += vals[i]
-        r1 += vals[i + 1]
-        r2 += vals[i + 2]
-        r3 += vals[i + 3]
-        r4 += vals[i + 4]
-        r5 += vals[i + 5]
-        r6 += vals[i + 6]
-        r7 += vals[i + 7]
-    res = ((r0 + r1) + (r2 + r3)) + ((r4 + r5) + (r6 + r7))
-    for i in range(m, n):
-        res += vals[i]
-    return res

@@ -6,25 +6,29 @@ number of the run is a counter-based hash of (key, iteration, swarm, waypoint, c
 particle), so a seed gives the same plan for any thread count or block split. The stream is not
 the NumPy engine's, so the two engines give different (statistically equivalent) plans.
 
-Compilation: every kernel is compiled on first use and cached on disk (``cache=True``; Numba's
-cache directory rules apply, e.g. ``NUMBA_CACHE_DIR``). :func:`prepare` does that explicitly and,
-when it takes longer than a moment (a cold cache), reports once through ``notify`` (default: a
-``logging`` warning on ``staghunt.engine``, which reaches stderr even when logging is not
-configured).
+Compilation: the kernels are compiled on first use and cached on disk (``cache=True``; Numba's
+cache location rules apply, e.g. ``NUMBA_CACHE_DIR``). :func:`prepare` does it explicitly. When
+the cache is cold it says so once through ``notify`` (default: a ``logging`` warning on
+``staghunt.engine``, which reaches stderr even when logging is not configured) and compiles the
+two kernel entry points in two processes at once (this one and a helper subprocess writing
+to the same cache), which roughly halves the wait on a 2-core machine.
 """
 
 from __future__ import annotations
 
 import logging
+import os
+import subprocess
+import sys
 import threading
 import time
-from typing import Callable
+from typing import Callable, Iterable
 
 import numpy as np
 
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
-from staghunt.engine.arrays import model_arrays, swarm_arrays
+from staghunt.engine.arrays import ModelArrays, SwarmArrays, model_arrays, swarm_arrays
 from staghunt.engine.threads import AdaptiveThreads, BlockRunner, usable_cores
 from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.problem import SwarmProblem
@@ -32,47 +36,182 @@ from staghunt.solvers.swarm import Progress, SwarmOutcome
 
 logger = logging.getLogger("staghunt.engine")
 
-COLD_COMPILE_ESTIMATE_S = 25
-"""Measured one-time compile of all kernels on a 2-core laptop-class machine (seconds, rounded up)."""
+COLD_COMPILE_ESTIMATE_S = 15
+"""Announced one-time compile (measured 12 s in two processes, 20 s in one, on a 2-core machine;
+see ``benchmarks/``)."""
 
 NOTIFY_AFTER_S = 1.0
-"""A warm cache loads in well under this; beyond it we are compiling and say so."""
+"""When the cache index cannot be read: loading every kernel from a warm cache takes well under
+this; beyond it we are compiling."""
+
+HELPER_ENTRIES = ("uav_pass",)
+"""Entry points the helper subprocess compiles while this process compiles the others."""
 
 _ready = threading.Event()
 _prepare_lock = threading.Lock()
-_compile_seconds: float | None = None
 
 
-def _warm_up() -> None:
-    """Run every kernel once on a tiny problem with the exact argument types of real runs."""
-    from staghunt.encoding import search_space
-    from staghunt.scenario import load_scenario
+class Scratch:
+    """One thread's block buffers for ``N`` UAVs, ``K`` waypoints, ``S`` swarms, ``B`` lanes
+    (shapes in :mod:`staghunt.engine.kernels`)."""
 
-    model = CostModel.from_scenario(load_scenario("scenario2"))
-    settings = SolverSettings(particles=8, iterations=1, waypoints=2)
-    n = model.n_uavs
-    problem = SwarmProblem(
-        model=model,
-        space=search_space(model.starts, model.goals, 2),
-        starts=model.starts,
-        lower=np.broadcast_to(model.lower, (n, 3)),
-        upper=np.broadcast_to(model.upper, (n, 3)),
-        member_of=np.arange(n),
-        offsets=np.zeros((n, 3)),
-        objective="players",
-        players=tuple(range(n)),
-    )
-    _run(problem, settings, np.random.default_rng(0), None, None, AdaptiveThreads(1, 1))
-    evaluate(model, np.full((1, n, 2, 3), 20.0))
+    def __init__(self, N: int, K: int, S: int, B: int) -> None:
+        S1 = K + 1
+        self.B = B
+        self.sww = np.zeros((max(S, 1), 3, K, B))
+        self.px = np.zeros((N, K + 2, B))
+        self.py = np.zeros((N, K + 2, B))
+        self.pz = np.zeros((N, K + 2, B))
+        self.ph = np.zeros((N, K, B))
+        self.seg = np.zeros((5, S1, B))
+        self.sub = np.zeros((6, S1, B))
+        self.ang = np.zeros((2, S1, B))
+        self.form = np.zeros((3, N, S1, B))
+        self.hit = np.zeros((2, S1, B))
+        self.rx = np.zeros((K + 2, B))
+        self.ry = np.zeros((K + 2, B))
+        self.rz = np.zeros((K + 2, B))
+        self.terms = np.zeros((N, 5, B))
+        self.vio = np.zeros((N, 3, B))
+        self.res = np.zeros((3, N, B))
+        self.tmp = np.zeros((max(S1, 3 * N, 8), B))
+        self.stx = np.zeros(B)
+        self.sty = np.zeros(B)
+        self.sth = np.zeros(B)
+        self.prev = np.zeros((3, B))
+        self.acc = np.zeros(B)
+        self.acc2 = np.zeros(B)
+        self.flag = np.zeros(B)
+        self.better = np.zeros(B)
+        self.bits1 = np.zeros(B, dtype=np.uint64)
+        self.bits2 = np.zeros(B, dtype=np.uint64)
 
 
-def prepare(notify: Callable[[str], None] | None = None) -> float:
+class _Pass:
+    """The arrays of one run of ``P`` particles (or, with ``wp`` ``(Q, N, K, 3)``, one
+    evaluation of ``Q`` allocations) and the two kernel calls per block."""
+
+    def __init__(self, ma: ModelArrays, sa: SwarmArrays, N: int, K: int, S: int, C: int, P: int,
+                 wp: np.ndarray | None = None, initial: np.ndarray | None = None) -> None:
+        self.ma, self.sa = ma, sa
+        self.B = kn.block_size(N, K)
+        self.X = np.zeros((S, K, 3, P))
+        self.V = np.zeros((S, K, 3, P))
+        self.PB = np.zeros((S, K, 3, P))
+        self.pcost = np.zeros((C, P))
+        self.pviol = np.zeros(P)
+        self.cost = np.zeros((C, P))
+        self.viol = np.zeros(P)
+        self.J = np.zeros((N, P))
+        self.gbest = np.zeros((S, K, 3))
+        self.initial = np.zeros((0, K, 3)) if initial is None else initial
+        if wp is None:
+            self.wp = np.zeros((0, N, K, 3))
+            self.terms_out, self.vio_out, self.res_out = np.zeros((0, N, 5)), np.zeros((0, N, 3)), np.zeros((0, 3, N))
+        else:
+            Q = wp.shape[0]
+            self.wp = wp
+            self.terms_out, self.vio_out, self.res_out = np.empty((Q, N, 5)), np.empty((Q, N, 3)), np.empty((Q, 3, N))
+        self.scratch: list[Scratch] = []
+        self.N, self.K, self.S = N, K, S
+        self.mode, self.it, self.key, self.inertia = kn.MODE_INIT, 0, np.uint64(0), 0.0
+
+    def ensure_scratch(self, threads: int) -> None:
+        while len(self.scratch) < threads:
+            self.scratch.append(Scratch(self.N, self.K, self.S, self.B))
+
+    def block(self, q0: int, nb: int, worker: int, entries: Iterable[str] = ("uav_pass", "team_pass")) -> None:
+        """Run the kernel entries on particles ``q0 .. q0+nb`` (``nb <= B``) with ``worker``'s scratch."""
+        w, ma, sa = self.scratch[worker], self.ma, self.sa
+        for name in entries:
+            if name == "uav_pass":
+                kn.uav_pass(self.mode, q0, nb, self.it, self.key, self.inertia, self.X, self.V, self.PB,
+                            self.gbest, self.initial, sa.sw, sa.member, sa.offsets, sa.fixed, ma.par, self.wp,
+                            ma.uav, ma.cyl, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
+                            w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag,
+                            w.terms, w.vio)
+            else:
+                kn.team_pass(self.mode, q0, nb, w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails,
+                             ma.mu, ma.ref_diff, ma.par, w.form, w.hit, w.rx, w.ry, w.rz, w.tmp, w.acc,
+                             w.acc2, w.flag, w.better, w.terms, w.vio, w.res, self.X, self.PB, self.pcost,
+                             self.pviol, self.cost, self.viol, self.J, sa.players, self.terms_out,
+                             self.vio_out, self.res_out)
+
+    def work(self, p0: int, p1: int, worker: int) -> None:
+        """All particles ``p0 .. p1`` in blocks of ``B``."""
+        for q0 in range(p0, p1, self.B):
+            self.block(q0, min(self.B, p1 - q0), worker)
+
+
+ENTRIES = ("uav_pass", "team_pass", "select_global")
+
+
+def _tiny(entries: Iterable[str]) -> None:
+    """Compile (or load) the given kernel entries by running them once on a tiny two-UAV problem
+    built directly (no scenario parsing), with exactly the argument types of real runs."""
+    N, K, P = 2, 2, 8
+    par = np.zeros(kn.N_PAR)
+    par[kn.P_MARGIN], par[kn.P_SAFE], par[kn.P_HREF], par[kn.P_CONTINUOUS] = 10.0, 2.0, 20.0, 1.0
+    par[kn.P_CELL], par[kn.P_C1], par[kn.P_C2] = 1.0, 1.5, 1.5
+    uav = np.array([[10.0, 10.0, 20.0, 80.0, 80.0, 20.0, 20.0, 20.0, 1.0, 1.0, 4.0],
+                    [20.0, 10.0, 20.0, 90.0, 80.0, 20.0, 20.0, 20.0, 1.0, 1.0, 4.0]])
+    ma = ModelArrays(uav=uav, weights=np.ones((N, 5)), cyl=np.array([[50.0, 50.0, 4.0]]),
+                     heads=np.zeros(1, dtype=np.int64), tails=np.ones(1, dtype=np.int64),
+                     mu=np.ones((N, 1)), ref_diff=np.array([[-10.0, 0.0, 0.0]]), grid=np.zeros((1, 1)),
+                     par=par)
+    q = np.pi / 4
+    row = [10.0, 10.0, 20.0, 0.0, 0.0, 5.0, 100.0, 100.0, 35.0, 0.0, -q, 0.0, 50.0, q, 2 * q,
+           25.0, q, q, 1.0, q, np.sin(q), np.cos(q)]
+    sa = SwarmArrays(sw=np.array([row, row]), member=np.arange(N, dtype=np.int64), offsets=np.zeros((N, 3)),
+                     fixed=np.zeros((N, K, 3)), players=np.arange(N, dtype=np.int64))
+    run = _Pass(ma, sa, N, K, N, N, P)
+    run.ensure_scratch(1)
+    names = list(entries)
+    kernel_names = [e for e in names if e != "select_global"]
+    if kernel_names:
+        run.block(0, P, 0, kernel_names)
+    if "select_global" in names:
+        kn.select_global(run.cost, run.viol, np.zeros((N, 1)), 0.0, True)
+
+
+def _cache_is_warm() -> bool | None:
+    """Whether Numba's on-disk cache holds every kernel entry for this source (``None``: cannot
+    tell; this peeks at Numba's cache index, an internal API)."""
+    try:
+        return all(bool(getattr(kn, name)._cache._cache_file._load_index()) for name in ENTRIES)
+    except Exception:  # noqa: BLE001 (any internal change: fall back to timing)
+        return None
+
+
+def _compile_part(names: str) -> None:
+    """Entry point of the helper subprocess: compile the comma-separated kernel entries."""
+    _tiny(names.split(","))
+
+
+def _spawn_helper(entries: Iterable[str]) -> subprocess.Popen[bytes] | None:
+    """Start a subprocess compiling ``entries`` into the shared cache (``None`` if it cannot start)."""
+    import staghunt
+
+    env = dict(os.environ)
+    root = os.path.dirname(os.path.dirname(os.path.abspath(staghunt.__file__)))
+    env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    code = f"from staghunt.engine.numba_engine import _compile_part; _compile_part({','.join(entries)!r})"
+    try:
+        return subprocess.Popen([sys.executable, "-c", code], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    except OSError:
+        return None
+
+
+def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) -> float:
     """Load (or, the first time, compile) the kernels; returns the seconds it took.
 
-    If that takes longer than :data:`NOTIFY_AFTER_S`, ``notify`` (default: a warning on the
-    ``staghunt.engine`` logger) is called once with a message saying what happens.
+    On a cold cache (Numba's cache index lacks an entry, or, if the index cannot be read,
+    loading takes longer than :data:`NOTIFY_AFTER_S`), ``notify`` (default: a warning on the
+    ``staghunt.engine`` logger) is called once with a message saying what happens, and, with
+    ``parallel``, a helper subprocess compiles :data:`HELPER_ENTRIES` into the shared cache
+    meanwhile. If the helper fails, this process compiles everything itself.
     """
-    global _compile_seconds
     if _ready.is_set():
         return 0.0
     with _prepare_lock:
@@ -81,40 +220,54 @@ def prepare(notify: Callable[[str], None] | None = None) -> float:
         say = notify if notify is not None else logger.warning
         t0 = time.perf_counter()
         errors: list[BaseException] = []
+        main_entries = [e for e in ENTRIES if e not in HELPER_ENTRIES]
 
         def target() -> None:
             try:
-                _warm_up()
+                _tiny(main_entries)
             except BaseException as exc:  # re-raised in the caller's thread
                 errors.append(exc)
 
+        warm = _cache_is_warm()
         worker = threading.Thread(target=target, name="staghunt-engine-compile", daemon=True)
         worker.start()
-        worker.join(NOTIFY_AFTER_S)
-        if worker.is_alive():
+        if warm is None:  # cannot tell: a warm cache loads well within NOTIFY_AFTER_S
+            worker.join(NOTIFY_AFTER_S)
+        helper = None
+        if warm is False or (warm is None and worker.is_alive()):
             say(
                 "staghunt: compiling the fast engine (one time, about "
                 f"{COLD_COMPILE_ESTIMATE_S} s; later runs load it from the cache)..."
             )
-            worker.join()
+            if parallel and usable_cores() > 1:
+                helper = _spawn_helper(HELPER_ENTRIES)
+        worker.join()
+        if helper is not None:
+            try:
+                helper.wait(timeout=600)
+            except subprocess.TimeoutExpired:
+                helper.kill()
         if errors:
             raise errors[0]
-        _compile_seconds = time.perf_counter() - t0
+        _tiny(ENTRIES)  # loads the helper's work (or compiles it here if the helper failed)
         _ready.set()
-        return _compile_seconds
+        return time.perf_counter() - t0
 
 
 def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
     """Compiled twin of :func:`staghunt.costs.evaluate`: ``(P, N, K, 3)`` ``(x, y, h)`` -> :class:`Costs`."""
+    prepare()
     wp = np.array(waypoints, dtype=np.float64, order="C", copy=True)
-    P, N = wp.shape[0], wp.shape[1]
-    ma = model_arrays(model)
-    terms = np.empty((P, N, 5))
-    vio = np.empty((P, N, 3))
-    res = np.empty((P, 3, N))
-    kn.evaluate_population(wp, *ma.args(), terms, vio, res)
-    return Costs(terms=terms, single=res[:, 1].copy(), formation=res[:, 0].copy(),
-                 total=res[:, 2].copy(), violation=vio)
+    P, N, K = wp.shape[0], wp.shape[1], wp.shape[2]
+    sa = SwarmArrays(sw=np.zeros((0, 22)), member=np.zeros(N, dtype=np.int64), offsets=np.zeros((N, 3)),
+                     fixed=np.zeros((N, K, 3)), players=np.zeros(1, dtype=np.int64))
+    run = _Pass(model_arrays(model), sa, N, K, 0, 1, 0, wp=wp)
+    run.mode = kn.MODE_EVALUATE
+    run.ensure_scratch(1)
+    run.work(0, P, 0)
+    res = run.res_out
+    return Costs(terms=run.terms_out, single=res[:, 1].copy(), formation=res[:, 0].copy(),
+                 total=res[:, 2].copy(), violation=run.vio_out)
 
 
 def _run(
@@ -132,57 +285,43 @@ def _run(
     key = np.uint64(int(rng.integers(2**63)))
     ma = model_arrays(problem.model, float(settings.c1), float(settings.c2), problem.objective == "sum")
     sa = swarm_arrays(problem, K)
-    X = np.empty((S, K, 3, P))
-    V = np.zeros((S, K, 3, P))
-    PB = np.empty((S, K, 3, P))
-    pcost = np.empty((C, P))
-    pviol = np.empty(P)
-    cost = np.empty((C, P))
-    viol = np.empty(P)
-    J = np.empty((N, P))
-    gbest = np.zeros((S, K, 3))
+    start = None if initial is None else np.array(initial, dtype=float).reshape(S, K, 3)
+    run = _Pass(ma, sa, N, K, S, C, P, initial=start)
+    run.key = key
+    run.inertia = float(settings.c0)
+    run.ensure_scratch(control.max_threads)
     gcost = np.zeros((C, 1))
-    kn.sample_positions(key, X, sa.sw)
-    if initial is not None:
-        X[..., 0] = np.asarray(initial, dtype=float).reshape(S, K, 3)
-    extra = (*sa.args(), *ma.args())
     history = np.empty((iterations + 1, C))
     rhistory = np.empty((iterations + 1, N))
     hviol = np.empty(iterations + 1)
-
-    state = {"it": 0, "inertia": float(settings.c0)}
-
-    def work(p0: int, p1: int) -> None:
-        kn.swarm_block(p0, p1, state["it"], key, state["inertia"], X, V, PB, pcost, pviol,
-                       cost, viol, J, gbest, *extra)
-
     with BlockRunner(control.max_threads) as runner:
-        runner.run(work, P, control.max_threads)
-        g = kn.select_global(cost, viol, gcost, 0.0, False)
-        gbest[...] = X[..., g]
-        gcost[:, 0] = cost[:, g]
-        gviol = float(viol[g])
-        history[0], rhistory[0], hviol[0] = gcost[:, 0], J[:, g], gviol
+        runner.run(run.work, P, control.max_threads, run.B)
+        g = kn.select_global(run.cost, run.viol, gcost, 0.0, False)
+        run.gbest[...] = run.X[..., g]
+        gcost[:, 0] = run.cost[:, g]
+        gviol = float(run.viol[g])
+        history[0], rhistory[0], hviol[0] = gcost[:, 0], run.J[:, g], gviol
+        run.mode = kn.MODE_STEP
         for it in range(1, iterations + 1):
-            state["it"] = it
+            run.it = it
             threads = control.next()
             t0 = time.perf_counter()
-            runner.run(work, P, threads)
+            runner.run(run.work, P, threads, run.B)
             control.record(time.perf_counter() - t0)
-            g = kn.select_global(cost, viol, gcost, gviol, True)
+            g = kn.select_global(run.cost, run.viol, gcost, gviol, True)
             if g >= 0:
-                gbest[...] = X[..., g]
-                gcost[:, 0] = cost[:, g]
-                gviol = float(viol[g])
-                rhistory[it] = J[:, g]
+                run.gbest[...] = run.X[..., g]
+                gcost[:, 0] = run.cost[:, g]
+                gviol = float(run.viol[g])
+                rhistory[it] = run.J[:, g]
             else:
                 rhistory[it] = rhistory[it - 1]
             history[it], hviol[it] = gcost[:, 0], gviol
-            state["inertia"] *= settings.damping
+            run.inertia *= settings.damping
             if progress is not None:
                 progress(it, iterations, gcost[:, 0].copy())
     return SwarmOutcome(
-        best=gbest.copy(),
+        best=run.gbest.copy(),
         best_cost=gcost[:, 0].copy(),
         best_violation=gviol,
         history=history,
@@ -195,12 +334,12 @@ def _run(
 class NumbaEngine:
     """The compiled engine. ``threads``: ``None`` = adaptive (1 or all usable cores, whichever
     is faster, re-measured every :data:`~staghunt.engine.threads.PROBE_EVERY` iterations);
-    an integer pins the count."""
+    an integer pins the count. ``notify`` receives the one-time compile message."""
 
     name = "numba"
 
     def __init__(self, threads: int | None = None, notify: Callable[[str], None] | None = None) -> None:
-        if threads is not None and (not isinstance(threads, int) or threads < 1):
+        if threads is not None and (isinstance(threads, bool) or not isinstance(threads, int) or threads < 1):
             raise ValueError(f"threads must be a positive integer or None, not {threads!r}")
         self.threads = threads
         self.notify = notify

@@ -5,16 +5,17 @@ iteration ends at a barrier (the global best needs every particle), and a barrie
 extra threads *slower* on a busy machine: a thread that shares its core with another process
 waits for a whole scheduler time slice while the others idle at the barrier. So the default
 (``threads=None``) is adaptive: :class:`AdaptiveThreads` times iterations with 1 thread and with
-all usable cores in short probes, repeated periodically, and keeps the faster for the next
-stretch. Results never depend on the thread count (counter-based random draws, per-particle
+all usable cores in short probes, repeated periodically and whenever the many-thread
+iterations slow down, and keeps the faster for the next stretch. Results never depend on the thread count (counter-based random draws, per-particle
 work, an order-independent reduction), so switching is free.
 """
 
 from __future__ import annotations
 
 import itertools
+import math
 import os
-import time
+import statistics
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Callable
 
@@ -22,9 +23,16 @@ PROBE_EVERY = 100
 """Iterations between two probes (the first probe starts at the first iteration)."""
 
 PROBE_LENGTH = 3
-"""Iterations timed per candidate thread count in a probe (the minimum is compared)."""
+"""Iterations timed per candidate thread count in a probe (the medians are compared)."""
 
-BLOCKS_PER_THREAD = 4
+MARGIN = 0.9
+"""Many threads are kept only when their median probe iteration takes under this fraction of
+the single thread's."""
+
+WATCH = 5
+"""Running many threads, the median of this many latest iterations is watched."""
+
+BLOCKS_PER_THREAD = 2
 """Particle blocks per thread and iteration when running on several threads (work sharing)."""
 
 
@@ -37,7 +45,7 @@ def usable_cores() -> int:
 
 
 class BlockRunner:
-    """Runs ``work(p0, p1)`` over ``[0, P)`` split into blocks, on ``1..max_threads`` threads.
+    """Runs ``work(p0, p1, worker)`` over ``[0, P)`` split into blocks, on ``1..max_threads`` threads.
 
     The calling thread works too; the others come from a private pool. Blocks are handed out
     dynamically (first come, first served), so a thread slowed down by another process simply
@@ -48,11 +56,13 @@ class BlockRunner:
         self.max_threads = max(1, int(max_threads))
         self._pool = ThreadPoolExecutor(self.max_threads - 1) if self.max_threads > 1 else None
 
-    def run(self, work: Callable[[int, int], None], n_particles: int, threads: int, align: int = 8) -> None:
-        """Process all particles with ``threads`` threads (``1 <= threads <= max_threads``)."""
+    def run(self, work: Callable[[int, int, int], None], n_particles: int, threads: int, align: int = 8) -> None:
+        """Process all particles with ``threads`` threads (``1 <= threads <= max_threads``):
+        ``work(p0, p1, worker)`` for ranges whose sizes are multiples of ``align`` (but the last);
+        ``worker`` in ``0 .. threads-1`` identifies the thread (for its scratch buffers)."""
         threads = max(1, min(threads, self.max_threads))
         if threads == 1 or self._pool is None:
-            work(0, n_particles)
+            work(0, n_particles, 0)
             return
         n_blocks = threads * BLOCKS_PER_THREAD
         size = -(-n_particles // n_blocks)
@@ -60,15 +70,15 @@ class BlockRunner:
         bounds = [(p, min(p + size, n_particles)) for p in range(0, n_particles, size)]
         counter = itertools.count()  # next() is atomic under the GIL
 
-        def worker() -> None:
+        def worker(wid: int) -> None:
             while True:
                 i = next(counter)
                 if i >= len(bounds):
                     return
-                work(*bounds[i])
+                work(bounds[i][0], bounds[i][1], wid)
 
-        futures: list[Future[None]] = [self._pool.submit(worker) for _ in range(threads - 1)]
-        worker()
+        futures: list[Future[None]] = [self._pool.submit(worker, w) for w in range(1, threads)]
+        worker(0)
         for f in futures:
             f.result()
 
@@ -87,50 +97,63 @@ class BlockRunner:
 class AdaptiveThreads:
     """Picks the thread count for each iteration; ``fixed`` pins it (even above the core count).
 
-    With ``fixed=None`` and more than one usable core: a probe (``PROBE_LENGTH`` iterations with
-    1 thread, then as many with ``max_threads``) every ``PROBE_EVERY`` iterations; in between, the
-    count whose fastest probe iteration was faster. ``record`` receives each iteration's wall time.
+    With ``fixed=None`` and more than one usable core, a *probe* runs ``2 * PROBE_LENGTH``
+    iterations alternating 1 thread and ``max_threads``, and the many-thread count is kept only
+    if its median iteration time beats the single thread's by :data:`MARGIN`. Probes repeat
+    every ``PROBE_EVERY`` iterations, and at once when, running many threads, the median of the
+    last :data:`WATCH` iterations exceeds the single-thread median (the machine got busy).
+    ``record`` receives each iteration's wall time.
     """
 
     def __init__(self, max_threads: int, fixed: int | None = None) -> None:
         self.fixed = None if fixed is None else max(1, int(fixed))
         self.max_threads = max(1, max_threads) if self.fixed is None else self.fixed
         self.choice = self.max_threads if self.fixed is None else self.fixed
-        self._times: dict[int, list[float]] = {}
-        self._step = 0
+        self._probe: list[tuple[int, float]] = []
+        self._probe_left = 2 * PROBE_LENGTH
+        self._since_probe = 0
+        self._single = math.inf
+        self._recent: list[float] = []
         self.history: list[int] = []
 
-    def _plan(self, step: int) -> int:
-        if self.fixed is not None:
-            return self.fixed
-        if self.max_threads == 1:
-            return 1
-        phase = step % PROBE_EVERY
-        if phase < PROBE_LENGTH:
-            return 1
-        if phase < 2 * PROBE_LENGTH:
-            return self.max_threads
-        return self.choice
+    @property
+    def adaptive(self) -> bool:
+        return self.fixed is None and self.max_threads > 1
 
     def next(self) -> int:
         """Thread count for the coming iteration."""
-        n = self._plan(self._step)
+        if not self.adaptive:
+            n = self.max_threads
+        elif self._probe_left > 0:
+            n = 1 if self._probe_left % 2 == 0 else self.max_threads
+        else:
+            n = self.choice
         self.history.append(n)
         return n
 
     def record(self, seconds: float) -> None:
         """Wall time of the iteration just run with the count :meth:`next` returned."""
-        if self.fixed is None and self.max_threads > 1:
-            phase = self._step % PROBE_EVERY
-            n = self.history[-1]
-            if phase == 0:
-                self._times = {}
-            if phase < 2 * PROBE_LENGTH:
-                self._times.setdefault(n, []).append(seconds)
-                if phase == 2 * PROBE_LENGTH - 1:
-                    best = {k: min(v) for k, v in self._times.items()}
-                    self.choice = min(best, key=lambda k: (best[k], k))
-        self._step += 1
+        if not self.adaptive:
+            return
+        n = self.history[-1]
+        if self._probe_left > 0:
+            self._probe.append((n, seconds))
+            self._probe_left -= 1
+            if self._probe_left == 0:
+                one = statistics.median(t for k, t in self._probe if k == 1)
+                many = statistics.median(t for k, t in self._probe if k != 1)
+                self._single = one
+                self.choice = self.max_threads if many < MARGIN * one else 1
+                self._probe, self._recent, self._since_probe = [], [], 0
+            return
+        self._since_probe += 1
+        if n != 1:
+            self._recent = (self._recent + [seconds])[-WATCH:]
+            slow = len(self._recent) == WATCH and statistics.median(self._recent) > self._single
+        else:
+            slow = False
+        if slow or self._since_probe >= PROBE_EVERY:
+            self._probe_left = 2 * PROBE_LENGTH
 
     def summary(self) -> dict[int, int]:
         """Iterations run with each thread count."""
@@ -138,10 +161,3 @@ class AdaptiveThreads:
         for n in self.history:
             out[n] = out.get(n, 0) + 1
         return out
-
-
-def timed(fn: Callable[[], None]) -> float:
-    """Wall time of ``fn()`` in seconds."""
-    t0 = time.perf_counter()
-    fn()
-    return time.perf_counter() - t0

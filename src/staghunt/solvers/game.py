@@ -7,13 +7,18 @@ Pareto-dominating allocations, which drives the team to a payoff-dominant alloca
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from staghunt.costs import CostModel
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import team_problem
-from staghunt.solvers.swarm import Progress, run_swarm
+from staghunt.solvers.swarm import Progress, swarm_runner
+
+if TYPE_CHECKING:
+    from staghunt.engine import Engine
 
 
 @register("game", "stag-hunt game: one swarm per UAV, Pareto-dominance bests (the paper)")
@@ -22,10 +27,14 @@ def solve_game(
     settings: SolverSettings,
     rng: np.random.Generator,
     progress: Progress | None = None,
+    *,
+    engine: "Engine | str | None" = None,
+    threads: int | None = None,
 ) -> SolverOutput:
+    """``engine``/``threads``: see :func:`staghunt.solvers.swarm.swarm_runner`."""
     model = CostModel.from_scenario(scenario)
     problem = team_problem(model, settings.waypoints, settings.velocity_fraction, "players")
-    out = run_swarm(problem, settings, rng, progress)
+    out = swarm_runner(engine, threads)(problem, settings, rng, progress)
     return SolverOutput(
         waypoints=problem.team_waypoints(out.best[None])[0],
         history=out.record_history,

@@ -10,6 +10,8 @@ the centre, must clear the obstacles; that sum is what the paper calls the virtu
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from staghunt.costs import CostModel, to_absolute
@@ -17,7 +19,10 @@ from staghunt.encoding import decode, search_space
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress, run_swarm
+from staghunt.solvers.swarm import Progress, swarm_runner
+
+if TYPE_CHECKING:
+    from staghunt.engine import Engine
 
 
 class FormationTooLarge(ValueError):
@@ -35,10 +40,14 @@ def solve_rigid(
     settings: SolverSettings,
     rng: np.random.Generator,
     progress: Progress | None = None,
+    *,
+    engine: "Engine | str | None" = None,
+    threads: int | None = None,
 ) -> SolverOutput:
+    """``engine``/``threads``: see :func:`staghunt.solvers.swarm.swarm_runner`."""
     model = CostModel.from_scenario(scenario)
     problem = rigid_problem(model, settings.waypoints, settings.velocity_fraction)
-    out = run_swarm(problem, settings, rng, progress)
+    out = swarm_runner(engine, threads)(problem, settings, rng, progress)
     leader = decode(out.best[None], problem.starts, problem.lower, problem.upper)[0, 0]  # (K, 3)
     goal = model.goals.mean(axis=0, keepdims=True)
     leader_full = np.concatenate([problem.starts, leader, goal], axis=0)

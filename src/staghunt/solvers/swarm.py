@@ -9,7 +9,7 @@ every swarm together forms joint allocation ``i``, evaluated as a whole into a c
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Protocol
+from typing import TYPE_CHECKING, Callable, Protocol
 
 import numpy as np
 
@@ -18,6 +18,8 @@ from staghunt.solvers.dominance import best_index, dominates
 from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.pso import position_step, velocity_step
 
+if TYPE_CHECKING:
+    from staghunt.engine import Engine
 
 
 class Progress(Protocol):
@@ -95,3 +97,14 @@ def run_swarm(
         history_violation=hviol,
         particle_evaluations=P * (settings.iterations + 1),
     )
+
+
+def swarm_runner(engine: "Engine | str | None" = None, threads: int | None = None) -> Callable[..., SwarmOutcome]:
+    """The ``run_swarm`` of ``engine``: ``None`` gives :func:`run_swarm` (the NumPy reference
+    loop); an engine or engine name goes through :func:`staghunt.engine.get_engine` (with
+    ``threads``). Same signature and contract as :func:`run_swarm`."""
+    if engine is None:
+        return run_swarm
+    from staghunt.engine import get_engine  # here: staghunt.engine imports this module
+
+    return get_engine(engine, threads).run_swarm

@@ -1,0 +1,316 @@
+"""The compiled engine against the NumPy reference.
+
+- ``evaluate`` twins: on random and adversarial populations (obstacles grazed at exactly
+  ``R + r`` and ``R + r + Delta``, heights below ground, repeated points, vertical segments,
+  team-mates touching at waypoints and crossing between them; flat and DEM terrain; thresholds
+  0 and 45 degrees; zero weights and zero ``beta``), every cost agrees within 1e-9 relative,
+  ``inf`` and zero-violation patterns are identical, and so are all Pareto-dominance decisions.
+- The swarm: decoding and objectives agree with :class:`SwarmProblem` (team sum, fixed members,
+  offsets); a seed gives the same result for any thread count; ``game`` and ``rigid`` find
+  feasible plans on paper scenario 2 with a small budget.
+
+Populations are tiny; the one-time compile is shared with every other test (Numba's cache).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+pytest.importorskip("numba")
+
+from staghunt import plan  # noqa: E402
+from staghunt.costs import CostModel, evaluate  # noqa: E402
+from staghunt.encoding import search_space  # noqa: E402
+from staghunt.engine import NumpyEngine, get_engine  # noqa: E402
+from staghunt.engine import fastmath as fm  # noqa: E402
+from staghunt.engine import kernels as kn  # noqa: E402
+from staghunt.engine.numba_engine import NumbaEngine  # noqa: E402
+from staghunt.engine.numba_engine import evaluate as fast_evaluate  # noqa: E402
+from staghunt.engine.threads import AdaptiveThreads  # noqa: E402
+from staghunt.scenario import load_scenario  # noqa: E402
+from staghunt.scenario.model import SolverSettings  # noqa: E402
+from staghunt.solvers.dominance import best_index, dominates  # noqa: E402
+from staghunt.solvers.problem import SwarmProblem, team_problem  # noqa: E402
+from staghunt.solvers.rigid import rigid_problem  # noqa: E402
+from staghunt.world import Terrain  # noqa: E402
+
+RTOL = 1e-9
+
+
+def frozen(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+def make_model(
+    n: int,
+    terrain: Terrain | None = None,
+    thresholds: float = 0.0,
+    weights: np.ndarray | None = None,
+    beta: np.ndarray | None = None,
+    continuous: bool = True,
+) -> CostModel:
+    """``n`` UAVs on a row flying north through a field of four cylinders; chain formation."""
+    terrain = terrain if terrain is not None else Terrain()
+    starts = np.array([[10.0 + 10.0 * i, 10.0, 20.0] for i in range(n)])
+    goals = np.array([[10.0 + 10.0 * i, 90.0, 20.0] for i in range(n)])
+
+    def absolute(p: np.ndarray) -> np.ndarray:
+        out = p.copy()
+        out[:, 2] = terrain.absolute(p[:, 0], p[:, 1], p[:, 2])
+        return out
+
+    heads = np.arange(max(n - 1, 0), dtype=np.intp)
+    tails = heads + 1
+    mu = np.zeros((n, len(heads)))
+    for e in range(len(heads)):
+        mu[heads[e], e] = 1.0
+        mu[tails[e], e] = 0.5
+    ref = goals
+    return CostModel(
+        terrain=terrain,
+        lower=frozen(np.array([0.0, 0.0, 0.0])),
+        upper=frozen(np.array([100.0, 100.0, 40.0])),
+        starts=frozen(starts),
+        goals=frozen(goals),
+        start_abs=frozen(absolute(starts)),
+        goal_abs=frozen(absolute(goals)),
+        radius=frozen(np.full(n, 1.0)),
+        beta=frozen(beta if beta is not None else np.linspace(1.0, 3.0, n)),
+        weights=frozen(weights if weights is not None else np.tile([5.0, 1.0, 10.0, 1.0, 1.0], (n, 1))),
+        cylinders=frozen(np.array([[30.0, 40.0, 4.0], [52.0, 55.0, 6.0], [20.0, 70.0, 3.0], [75.0, 30.0, 5.0]])),
+        heads=frozen(heads),
+        tails=frozen(tails),
+        mu=frozen(mu),
+        ref_diff=frozen(ref[heads] - ref[tails]),
+        reference=frozen(ref),
+        danger_margin=10.0,
+        safe_distance=2.0,
+        turning_threshold_deg=thresholds,
+        climb_threshold_deg=thresholds,
+        h_ref=20.0,
+        continuous_separation=continuous,
+    )
+
+
+def dem(sampling: str, dtype: type) -> Terrain:
+    rng = np.random.default_rng(5)
+    grid = (rng.random((12, 12)) * 8.0).astype(dtype)
+    grid.setflags(write=False)
+    return Terrain(elevation=grid, origin=(1.0, 1.0), cell_size=9.0, sampling=sampling)
+
+
+def population(model: CostModel, P: int, K: int, seed: int) -> np.ndarray:
+    """``(P, N, K, 3)``: random paths around the start-goal lines, then adversarial rows."""
+    rng = np.random.default_rng(seed)
+    N = model.n_uavs
+    t = (np.arange(1, K + 1) / (K + 1))[None, None, :, None]
+    line = model.starts[None, :, None, :] + t * (model.goals - model.starts)[None, :, None, :]
+    wp = line + rng.normal(0.0, [8.0, 8.0, 6.0], size=(P, N, K, 3))
+    wp[..., :2] = np.clip(wp[..., :2], 0.0, 100.0)
+    wp[..., 2] = np.round(wp[..., 2], 1)
+    # Adversarial rows (each on one allocation):
+    wp[0, :, :, 2] = -1.0  # below ground everywhere
+    wp[1, :, :, 2] = 0.0  # exactly on the ground (finite)
+    wp[2, 0, :] = wp[2, 0, :1]  # repeated points: zero-length segments
+    wp[3, 0, :, :2] = model.starts[0, :2]  # vertical segments above the start
+    wp[3, 0, :, 2] = np.linspace(5.0, 30.0, K)
+    cx, cy, R = model.cylinders[0]
+    for i, gap in ((4, R + 1.0), (5, R + 1.0 + 10.0), (6, R + 1.0 - 1e-12), (7, R + 11.0 + 1e-12)):
+        wp[i, 0, :, 0] = cx + gap  # a north-south line at exactly this distance from the axis
+        wp[i, 0, :, 1] = np.linspace(cy - 20.0, cy + 20.0, K)
+    if N > 1:
+        wp[8, 1] = wp[8, 0]  # two UAVs on the same waypoints
+        wp[9, 1] = wp[9, 0] + np.array([4.0, 0.0, 0.0])  # exactly at the separation limit
+        wp[10, 1] = wp[10, 0] + np.array([4.0 + 1e-9, 0.0, 0.0])  # just clear at waypoints
+        if K >= 2:  # crossing between waypoints: swap sides from one waypoint to the next
+            wp[11, 1, ::2] = wp[11, 0, ::2] + np.array([6.0, 0.0, 0.0])
+            wp[11, 1, 1::2] = wp[11, 0, 1::2] - np.array([6.0, 0.0, 0.0])
+    wp[12, :, :, 0] = 100.0  # on the site edge
+    wp[13] = np.round(wp[13])  # integer coordinates: many exact ties and right angles
+    return wp
+
+
+def assert_costs_agree(model: CostModel, wp: np.ndarray) -> None:
+    ref = evaluate(model, wp)
+    got = fast_evaluate(model, wp)
+    for name in ("terms", "single", "formation", "total"):
+        a, b = getattr(got, name), getattr(ref, name)
+        assert np.array_equal(np.isinf(a), np.isinf(b)), f"{name}: inf pattern differs"
+        assert not np.isnan(a).any(), f"{name}: NaN"
+        fin = np.isfinite(b)
+        np.testing.assert_allclose(a[fin], b[fin], rtol=RTOL, atol=1e-9, err_msg=name)
+    np.testing.assert_allclose(got.violation, ref.violation, rtol=RTOL, atol=1e-12)
+    assert np.array_equal(got.violation == 0, ref.violation == 0)
+    # Every pairwise dominance decision, and the preferred allocation.
+    for cost_a, cost_b in ((got.total, ref.total),):
+        va, vb = got.total_violation, ref.total_violation
+        da = dominates(cost_a[:, None], va[:, None], cost_a[None], va[None])
+        db = dominates(cost_b[:, None], vb[:, None], cost_b[None], vb[None])
+        assert np.array_equal(da, db)
+        assert best_index(cost_a, va) == best_index(cost_b, vb)
+
+
+@pytest.mark.parametrize("n", [1, 3, 5])
+@pytest.mark.parametrize("K", [1, 3, 10])
+def test_evaluate_agrees_flat(n, K):
+    model = make_model(n)
+    assert_costs_agree(model, population(model, 64, K, seed=10 * n + K))
+
+
+@pytest.mark.parametrize(
+    "terrain",
+    [dem("nearest", np.float32), dem("nearest", np.float64), dem("bilinear", np.float32)],
+    ids=["nearest-float32", "nearest-float64", "bilinear"],
+)
+def test_evaluate_agrees_dem(terrain):
+    model = make_model(3, terrain=terrain)
+    wp = population(model, 64, 10, seed=3)
+    wp[20:30, :, :, :2] = np.round(wp[20:30, :, :, :2] / 9.0) * 9.0 + 1.0 + 4.5  # half-cell ties
+    assert_costs_agree(model, wp)
+
+
+@pytest.mark.parametrize("thresholds", [0.0, 45.0])
+def test_evaluate_agrees_thresholds(thresholds):
+    model = make_model(3, thresholds=thresholds)
+    wp = population(model, 64, 10, seed=4)
+    # Exact 45-degree turns and climbs: right-angle zigzags on integer coordinates.
+    zig = np.array([[10.0 * k, 10.0 * k + (10.0 if k % 2 else 0.0), 20.0 + (10.0 if k % 2 else 0.0)]
+                    for k in range(1, 11)])
+    wp[30, 0] = zig
+    wp[31, 0] = zig[:, [1, 0, 2]]
+    assert_costs_agree(model, wp)
+
+
+def test_evaluate_agrees_zero_weights_and_beta():
+    n = 3
+    weights = np.array([[5.0, 0.0, 10.0, 1.0, 1.0], [0.0, 1.0, 0.0, 0.0, 1.0], [1.0, 1.0, 1.0, 1.0, 0.0]])
+    model = make_model(n, weights=weights, beta=np.array([0.0, 1.0, 0.0]))
+    assert_costs_agree(model, population(model, 64, 10, seed=5))
+    assert_costs_agree(make_model(n, continuous=False), population(model, 64, 10, seed=6))
+
+
+def test_dominance_kernels_match_reference():
+    rng = np.random.default_rng(0)
+    C, P = 3, 200
+    cost = rng.choice([1.0, 2.0, 3.0, np.inf], size=(C, P))
+    viol = np.where(np.isinf(cost).any(axis=0), rng.choice([0.5, 1.0, 2.0], size=P), 0.0)
+    for i in range(P):
+        for j in range(0, P, 7):
+            want = bool(dominates(cost[:, i], viol[i], cost[:, j], viol[j]))
+            assert kn._dominates(cost, i, viol[i], cost, j, viol[j]) == want
+    g = np.array([[2.0], [2.0], [2.0]])
+    for gv in (0.0, 1.0):
+        mask = dominates(cost.T, viol, g[:, 0], np.float64(gv))
+        assert kn.select_global(cost, viol, g, gv, True) == best_index(cost.T, viol, mask)
+    assert kn.select_global(cost, viol, g, 0.0, False) == best_index(cost.T, viol)
+
+
+def test_fast_math_matches_libm_where_it_decides():
+    for y in (0.0, -0.0, 1.0, -1.0, 1e-300):
+        for x in (0.0, -0.0, 1.0, -1.0, 3.0, -2.5):
+            a, b = fm.atan2(y, x), math.atan2(y, x)
+            assert a == b and math.copysign(1.0, a) == math.copysign(1.0, b)
+    rng = np.random.default_rng(1)
+    for _ in range(2000):
+        y, x = rng.normal(size=2) * 10.0 ** rng.uniform(-3, 3, size=2)
+        assert abs(fm.atan2(y, x) - math.atan2(y, x)) <= 4e-16 * max(1.0, abs(math.atan2(y, x)))
+        s, c = fm.sincos(x)
+        assert abs(s - math.sin(x)) <= 4e-16 and abs(c - math.cos(x)) <= 4e-16
+    bits = [fm.unit_bits(np.uint64(fm.counter_hash(np.uint64(9), np.uint64(i)))) for i in range(4000)]
+    u = np.array(bits, dtype=np.uint64).view(np.float64) - 1.0  # the kernels' uniform draws
+    assert 0.0 <= u.min() and u.max() < 1.0 and abs(u.mean() - 0.5) < 0.02
+
+
+def scenario2_problem() -> tuple[CostModel, SwarmProblem]:
+    model = CostModel.from_scenario(load_scenario("scenario2"))
+    return model, team_problem(model, 10, 0.5, "players")
+
+
+def single_particle_cost(problem: SwarmProblem, X0: np.ndarray) -> tuple[np.ndarray, float]:
+    """The compiled engine's compared cost of one particle (placed as the warm start)."""
+    settings = SolverSettings(particles=1, iterations=0, waypoints=X0.shape[1])
+    out = NumbaEngine(threads=1).run_swarm(problem, settings, np.random.default_rng(0), initial=X0)
+    return out.best_cost, out.best_violation
+
+
+@pytest.mark.parametrize("kind", ["players", "sum", "rigid", "fixed"])
+def test_decoding_and_objectives_agree_with_problem(kind):
+    model, problem = scenario2_problem()
+    if kind == "sum":
+        problem = team_problem(model, 10, 0.5, "sum")
+    elif kind == "rigid":
+        problem = rigid_problem(model, 10, 0.5)
+    elif kind == "fixed":  # one swarm for UAV 2, the others fly fixed paths; UAV 2's own J
+        t = (np.arange(1, 11) / 11)[:, None]
+        fixed = model.starts[:, None, :] + t[None] * (model.goals - model.starts)[:, None, :]
+        problem = SwarmProblem(
+            model=model, space=search_space(model.starts[1:2], model.goals[1:2], 10),
+            starts=model.starts[1:2], lower=model.lower[None], upper=model.upper[None],
+            member_of=np.array([-1, 0, -1]), offsets=np.zeros((3, 3)), objective="players",
+            players=(1,), fixed=fixed,
+        )
+    X = problem.space.sample(np.random.default_rng(2), 12, 10)
+    want_cost, want_viol, _ = problem.evaluate(X)
+    for i in range(len(X)):
+        cost, viol = single_particle_cost(problem, X[i])
+        assert (viol == 0) == (want_viol[i] == 0)
+        np.testing.assert_allclose(viol, want_viol[i], rtol=1e-9, atol=1e-9)
+        assert np.array_equal(np.isinf(cost), np.isinf(want_cost[i]))
+        fin = np.isfinite(want_cost[i])
+        np.testing.assert_allclose(cost[fin], want_cost[i][fin], rtol=1e-9)
+
+
+def test_same_seed_same_result_for_any_thread_count():
+    _, problem = scenario2_problem()
+    settings = SolverSettings(particles=70, iterations=6, waypoints=10)  # blocks split unevenly
+    outs = [NumbaEngine(threads=t).run_swarm(problem, settings, np.random.default_rng(42)) for t in (1, 2, 3, 1)]
+    for out in outs[1:]:
+        assert np.array_equal(out.best, outs[0].best)
+        assert np.array_equal(out.history, outs[0].history)
+        assert np.array_equal(out.record_history, outs[0].record_history)
+    other = NumbaEngine(threads=1).run_swarm(problem, settings, np.random.default_rng(43))
+    assert not np.array_equal(other.best, outs[0].best)
+
+
+def test_adaptive_threads_probe_and_choose():
+    busy = AdaptiveThreads(2)  # two threads slower: keeps one thread after the probe
+    seen = []
+    for _ in range(20):
+        n = busy.next()
+        seen.append(n)
+        busy.record(0.010 if n == 1 else 0.020)
+    assert seen[:6] == [1, 2, 1, 2, 1, 2] and set(seen[6:]) == {1}
+    idle = AdaptiveThreads(2)  # two threads faster: keeps two, re-probes when they slow down
+    seen = []
+    for i in range(40):
+        n = idle.next()
+        seen.append(n)
+        idle.record((0.010 if n == 1 else 0.006) if i < 20 else (0.010 if n == 1 else 0.030))
+    assert set(seen[6:20]) == {2} and seen[-1] == 1
+    assert AdaptiveThreads(2, fixed=2).next() == 2 and AdaptiveThreads(1).next() == 1
+
+
+@pytest.mark.parametrize("method", ["game", "rigid"])
+def test_fast_engine_plans_feasibly_on_scenario2(method):
+    scenario = load_scenario("scenario2")
+    settings = scenario.solver.with_(particles=150, iterations=60)
+    result = plan(scenario, method, 1, settings, engine="numba")
+    assert result.feasible, result.message
+    assert np.isfinite(result.history[-1]).all()
+    again = plan(scenario, method, 1, settings, engine="numba", threads=2)
+    assert np.array_equal(again.waypoints, result.waypoints)
+
+
+def test_engine_names():
+    assert isinstance(get_engine("numpy"), NumpyEngine)
+    assert get_engine("numba", threads=2).threads == 2
+    assert get_engine("auto").name == "numba"
+    with pytest.raises(ValueError):
+        get_engine("fortran")
+    with pytest.raises(ValueError):
+        get_engine("numba", threads=0)
