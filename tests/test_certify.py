@@ -18,7 +18,6 @@ from staghunt.analysis.certify import (
     certify_plan,
     certify_result_file,
 )
-from staghunt.analysis.golden import reference_engine
 from staghunt.costs import CostModel, evaluate
 from staghunt.io.result_json import write_result
 from staghunt.scenario import load_scenario, scenario_from_dict
@@ -182,7 +181,7 @@ def run_cli(argv: list[str]) -> int:
 def result_file(tmp_path_factory):
     scenario = load_scenario("scenario2")
     r = plan(scenario, "game", 4, scenario.solver.with_(particles=12, iterations=3, waypoints=6),
-             **reference_engine())
+             engine="numpy")
     path = tmp_path_factory.mktemp("certify") / "result.json"
     write_result(r, path)
     return path, r

@@ -136,8 +136,8 @@ def test_plan_infeasible_exit_3_still_writes(tmp_path, capsys, monkeypatch):
     scenario = load_scenario("scenario1")
     real_plan = staghunt.api.plan
 
-    def straight_plan(scn, method, seed, settings, progress):
-        real = real_plan(scn, method, seed, settings.with_(iterations=0), progress)
+    def straight_plan(scn, method, seed, settings, progress, **engine):
+        real = real_plan(scn, method, seed, settings.with_(iterations=0), progress, **engine)
         s, g = scenario.starts(), scenario.goals()
         t = np.arange(1, settings.waypoints + 1) / (settings.waypoints + 1)
         wp = s[:, None, :] + t[None, :, None] * (g - s)[:, None, :]
@@ -153,7 +153,7 @@ def test_plan_infeasible_exit_3_still_writes(tmp_path, capsys, monkeypatch):
 
 
 def test_plan_keyboard_interrupt(tmp_path, capsys, monkeypatch):
-    def interrupted(scn, method, seed, settings, progress):
+    def interrupted(scn, method, seed, settings, progress, **engine):
         progress(1, 5, np.array([1.0, 2.0, 3.0]))
         raise KeyboardInterrupt
 

@@ -25,16 +25,14 @@ from staghunt.analysis.compare import (
     parse_seeds,
     run_compare,
 )
-from staghunt.analysis.golden import reference_engine
 from staghunt.analysis.paper import PAPER_GAME_LN, PAPER_RIGID_VIRTUAL_LN
-from staghunt.cli_analysis import _plan_takes_engine
 from staghunt.scenario import load_scenario
 from staghunt.solvers import METHODS
 
 METHODS4 = ("game", "rigid", "independent", "weighted")
 SEEDS = (1, 2)
 TINY_CERT = CertifyOptions(particles=6, iterations=2, epsilon=0.01)
-ENGINE = ["--engine", "numpy"] if _plan_takes_engine() else []  # no compile time in the tests
+ENGINE = ["--engine", "numpy"]  # no compile time in the tests
 
 
 def strict(path: Path):
@@ -58,7 +56,7 @@ def settings(scenario):
 def done(tmp_path_factory, scenario, settings):
     out = tmp_path_factory.mktemp("cmp")
     report = run_compare(scenario, out, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
-                         plan_options=reference_engine())
+                         plan_options={"engine": "numpy"})
     return out, report
 
 
@@ -196,7 +194,7 @@ def test_resume_plans_nothing_again(done, scenario, settings, monkeypatch):
     monkeypatch.setattr(staghunt.api, "plan", no_plan)
     monkeypatch.setattr(staghunt.analysis.certify, "certify_plan", no_plan)
     report = run_compare(scenario, out, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
-                         plan_options=reference_engine())
+                         plan_options={"engine": "numpy"})
     assert report.complete
     assert (out / "compare.json").read_bytes() == before
 
@@ -209,7 +207,7 @@ def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings,
 
     with pytest.raises(KeyboardInterrupt):
         run_compare(scenario, tmp_path, methods=("game", "rigid"), seeds=(1, 2), settings=settings,
-                    certify=None, listener=Stop(), plan_options=reference_engine())
+                    certify=None, listener=Stop(), plan_options={"engine": "numpy"})
     data = strict(tmp_path / "compare.json")
     assert [(r["method"], r["seed"]) for r in data["runs"]] == [("game", 1), ("rigid", 1), ("game", 2)]
     assert not data["complete"] and data["missing"] == ["rigid-s2"]
@@ -217,7 +215,7 @@ def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings,
     real = staghunt.api.plan
     monkeypatch.setattr(staghunt.api, "plan", lambda *a, **k: calls.append(a[1:3]) or real(*a, **k))
     report = run_compare(scenario, tmp_path, methods=("game", "rigid"), seeds=(1, 2), settings=settings,
-                         certify=None, plan_options=reference_engine())
+                         certify=None, plan_options={"engine": "numpy"})
     assert calls == [("rigid", 2)] and report.complete
 
 

@@ -42,13 +42,13 @@ def plan(
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
     settings = settings if settings is not None else scenario.solver
     validate_settings(settings)
-    runner = get_engine(engine, threads)
+    resolved = get_engine(engine, threads)
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    out = METHODS[method](scenario, settings, rng, progress, engine=runner, threads=threads)
+    out = METHODS[method](scenario, settings, rng, progress, runner=resolved.run_swarm)
     wall = time.perf_counter() - t0
     return assemble(scenario, method, seed, settings, out.waypoints, out.history,
-                    out.objective_history, out.evaluations, wall, out.leader_path)
+                    out.objective_history, out.evaluations, wall, out.leader_path, resolved.name)
 
 
 def validate_settings(s: SolverSettings) -> None:
@@ -78,6 +78,7 @@ def assemble(
     evaluations: int,
     wall_time_s: float,
     leader_path: np.ndarray | None = None,
+    engine: str = "numpy",
 ) -> PlanResult:
     """Evaluate, check and package a plan ``(N, K, 3)`` into an immutable :class:`PlanResult`."""
     model = CostModel.from_scenario(scenario)
@@ -112,4 +113,5 @@ def assemble(
         evaluations=evaluations,
         wall_time_s=wall_time_s,
         leader_path=leader_path,
+        engine=engine,
     )

@@ -25,7 +25,7 @@ from typing import Any, Sequence, TextIO
 
 import numpy as np
 
-from staghunt.cli_analysis import add_commands
+from staghunt.cli_analysis import add_commands, add_engine_options, engine_kwargs
 
 EXIT_OK = 0
 EXIT_USAGE = 2
@@ -108,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="DIR",
         help="output directory (default: runs/<scenario>-<method>-s<seed>)",
     )
+    add_engine_options(p)
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
     p.add_argument(
         "--quiet",
@@ -184,7 +185,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     reporter = ProgressReporter(sys.stderr, quiet=args.quiet)
     try:
-        result = plan(scenario, args.method, args.seed, settings, reporter)
+        result = plan(scenario, args.method, args.seed, settings, reporter, **engine_kwargs(args))
     finally:
         reporter.close()
 

@@ -91,8 +91,7 @@ def add_commands(subparsers: Any) -> None:
                    help=f"best-response search iterations per UAV (default: {DEFAULT_ITERATIONS})")
     p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
                    help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g})")
-    if _plan_takes_engine():
-        _engine_options(p)
+    add_engine_options(p)
     p.add_argument("--no-certify", action="store_true", help="skip the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
@@ -119,32 +118,24 @@ def add_commands(subparsers: Any) -> None:
                    help=f"relative tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
     p.add_argument("--seed", type=_int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
     p.add_argument("--out", metavar="FILE", help="also write the certificate as JSON to FILE")
-    _engine_options(p)
+    add_engine_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_certify)
 
 
-def _plan_takes_engine() -> bool:
-    """Whether :func:`staghunt.plan` accepts ``engine`` and ``threads`` (the fast engine)."""
-    import inspect
-
-    from staghunt.api import plan
-
-    params = inspect.signature(plan).parameters
-    return "engine" in params and "threads" in params
-
-
-def _engine_options(p: argparse.ArgumentParser) -> None:
+def add_engine_options(p: argparse.ArgumentParser) -> None:
+    """``--engine`` and ``--threads`` (shared by plan, compare and certify)."""
     from staghunt.engine import ENGINE_NAMES
 
     p.add_argument("--engine", choices=list(ENGINE_NAMES),
-                   help="engine of the swarm runs (default: the NumPy reference for certificates, "
-                   "plan()'s default for plans)")
+                   default="auto", help="numba (compiled), numpy (reference) or auto: numba if "
+                   "installed (default: auto)")
     p.add_argument("--threads", type=_int_at_least(1), metavar="N",
                    help="threads of the numba engine (default: adaptive)")
 
 
-def _engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+def engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """``engine``/``threads`` keyword arguments from the parsed options."""
     out: dict[str, Any] = {}
     if getattr(args, "engine", None) is not None:
         out["engine"] = args.engine
@@ -320,7 +311,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     listener = _CompareProgress(sys.stderr, args.quiet)
     try:
         report = run_compare(scenario, out, methods=methods, seeds=seeds, settings=settings,
-                             certify=certify, listener=listener, plan_options=_engine_kwargs(args))
+                             certify=certify, listener=listener, plan_options=engine_kwargs(args))
     except KeyboardInterrupt:
         listener.close()
         done = _count_done(out, methods, seeds, certify is not None)
@@ -385,7 +376,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         cert, data = certify_result_file(args.result, particles=args.particles,
                                          iterations=args.iterations, seed=seed,
                                          epsilon=args.epsilon, progress=progress,
-                                         **_engine_kwargs(args))
+                                         **engine_kwargs(args))
     except KeyboardInterrupt:
         line.close()
         print(f"{PROG}: interrupted", file=sys.stderr)

@@ -38,6 +38,8 @@ class PlanResult:
       game; ``C = 1``, the team's summed cost, for single-objective methods).
     - ``evaluations``: single-UAV path evaluations spent (a joint evaluation of ``N`` paths counts ``N``).
     - ``leader_path``: ``(K + 2, 3)`` absolute path of the virtual leader (``rigid`` only, else ``None``).
+    - ``engine``: the engine that ran the swarms (``"numpy"`` or ``"numba"``); the engines draw
+      different random streams, so a plan is reproduced by the same seed *and* engine.
     """
 
     method: str
@@ -56,6 +58,7 @@ class PlanResult:
     evaluations: int
     wall_time_s: float
     leader_path: np.ndarray | None = None
+    engine: str = "numpy"
 
     @property
     def feasible(self) -> bool:

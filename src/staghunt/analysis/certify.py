@@ -47,9 +47,10 @@ import numpy as np
 
 from staghunt.costs import CostModel, evaluate
 from staghunt.encoding import decode, encode, search_space
+from staghunt.engine import Engine, get_engine
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress, run_swarm
+from staghunt.solvers.swarm import Progress
 
 DEFAULT_EPSILON = 0.01
 """Default tolerance: a relative Nash gap of at most 1 % of the UAV's own cost."""
@@ -184,7 +185,7 @@ def certify_plan(
     epsilon: float = DEFAULT_EPSILON,
     settings: SolverSettings | None = None,
     progress: Callable[[int, int, int, int], None] | None = None,
-    engine: Any = None,
+    engine: "str | Engine" = "auto",
     threads: int | None = None,
 ) -> Certificate:
     """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
@@ -193,8 +194,8 @@ def certify_plan(
     (``c0``, ``damping``, ``c1``, ``c2``, ``velocity_fraction``) come from ``settings``
     (default: the scenario's). ``epsilon``: relative tolerance of the verdict.
     ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
-    ``engine``/``threads``: the engine of the searches (``None``: the NumPy reference loop; else
-    see :func:`staghunt.engine.get_engine`); the plan's costs are always evaluated with the NumPy
+    ``engine``/``threads``: the engine of the searches (see :func:`staghunt.engine.get_engine`);
+    the plan's costs are always evaluated with the NumPy
     reference. Raises ``ValueError`` for unusable inputs.
     """
     wp = np.asarray(waypoints, dtype=float)
@@ -211,12 +212,7 @@ def certify_plan(
         raise ValueError(f"certify iterations must be an integer >= 0, got {iterations!r}")
     if not (isinstance(epsilon, (int, float)) and math.isfinite(epsilon) and epsilon >= 0):
         raise ValueError(f"epsilon must be a finite number >= 0, got {epsilon!r}")
-    if engine is None:
-        search = run_swarm
-    else:
-        from staghunt.engine import get_engine
-
-        search = get_engine(engine, threads).run_swarm
+    search = get_engine(engine, threads).run_swarm
     base = settings if settings is not None else scenario.solver
     run_settings = base.with_(particles=particles, iterations=iterations, waypoints=wp.shape[1])
     model = CostModel.from_scenario(scenario)
@@ -257,7 +253,7 @@ def certify_plan(
         deviation.setflags(write=False)
         gaps.append(
             UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip,
-                   out.particle_evaluations * 1)
+                   out.path_evaluations)
         )
     return Certificate(
         uavs=tuple(gaps),
@@ -334,7 +330,7 @@ def certify_result_file(
     seed: int = 0,
     epsilon: float = DEFAULT_EPSILON,
     progress: Callable[[int, int, int, int], None] | None = None,
-    engine: Any = None,
+    engine: "str | Engine" = "auto",
     threads: int | None = None,
 ) -> tuple[Certificate, dict[str, Any]]:
     """Certify the plan stored in ``path`` (a ``result.json``); returns the certificate and the

@@ -327,7 +327,7 @@ def _run(
         history=history,
         record_history=rhistory,
         history_violation=hviol,
-        particle_evaluations=P * (iterations + 1),
+        path_evaluations=problem.path_evaluations(settings),
     )
 
 

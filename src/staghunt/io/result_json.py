@@ -201,6 +201,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
         "notes": {"infinity": INFINITY_NOTE, "paths": _PATH_NOTE, "history": _HISTORY_NOTE},
         "method": result.method,
         "seed": int(result.seed),
+        "engine": result.engine,
         "status": result.status.value,
         "message": result.message,
         "wall_time_s": encode_number(result.wall_time_s, "wall_time_s"),

@@ -3,22 +3,19 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Protocol
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
 from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.swarm import Progress
-
-if TYPE_CHECKING:
-    from staghunt.engine import Engine
+from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
 @dataclass(frozen=True, eq=False)
 class SolverOutput:
     """``waypoints``: ``(N, K, 3)`` ``(x, y, h)``; ``history``: ``(I + 1, N)`` per-UAV ``J_n`` of
     the best allocation; ``objective_history``: ``(I + 1, C)``; ``evaluations``: single-UAV path
-    evaluations; ``leader_path``: virtual leader's absolute ``(K + 2, 3)`` path, if any."""
+    evaluations (summed ``SwarmOutcome.path_evaluations``); ``leader_path``: virtual leader's absolute ``(K + 2, 3)`` path, if any."""
 
     waypoints: np.ndarray
     history: np.ndarray
@@ -28,11 +25,11 @@ class SolverOutput:
 
 
 class Method(Protocol):
-    """A method: ``(scenario, settings, rng, progress, *, engine, threads) -> SolverOutput``.
+    """A method: ``(scenario, settings, rng, progress, *, runner) -> SolverOutput``.
 
-    ``engine``: what runs its swarm loops: ``None`` (the NumPy reference loop), an engine or an
-    engine name for :func:`staghunt.engine.get_engine` (with ``threads``); every method is a
-    :class:`~staghunt.solvers.problem.SwarmProblem`, so every engine runs every method.
+    Every method builds one or more :class:`~staghunt.solvers.problem.SwarmProblem` and hands
+    them to ``runner`` (:func:`~staghunt.solvers.swarm.run_swarm`, the NumPy reference, or an
+    engine's ``run_swarm``), so every engine runs every method.
     """
 
     def __call__(
@@ -42,8 +39,7 @@ class Method(Protocol):
         rng: np.random.Generator,
         progress: Progress | None = None,
         *,
-        engine: "Engine | str | None" = None,
-        threads: int | None = None,
+        runner: SwarmRunner = run_swarm,
     ) -> SolverOutput: ...
 
 

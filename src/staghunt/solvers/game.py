@@ -7,7 +7,7 @@ Pareto-dominating allocations, which drives the team to a payoff-dominant alloca
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import Literal
 
 import numpy as np
 
@@ -15,10 +15,28 @@ from staghunt.costs import CostModel
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import team_problem
-from staghunt.solvers.swarm import Progress, swarm_runner
+from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
-if TYPE_CHECKING:
-    from staghunt.engine import Engine
+
+def solve_team(
+    scenario: Scenario,
+    settings: SolverSettings,
+    rng: np.random.Generator,
+    progress: Progress | None,
+    runner: SwarmRunner,
+    objective: Literal["players", "sum"],
+) -> SolverOutput:
+    """One swarm per UAV moving jointly; ``objective`` ``"players"`` (the game: Pareto dominance
+    over the ``J_n``) or ``"sum"`` (centralised: ``sum_n J_n``)."""
+    model = CostModel.from_scenario(scenario)
+    problem = team_problem(model, settings.waypoints, settings.velocity_fraction, objective)
+    out = runner(problem, settings, rng, progress)
+    return SolverOutput(
+        waypoints=problem.team_waypoints(out.best[None])[0],
+        history=out.record_history,
+        objective_history=out.history,
+        evaluations=out.path_evaluations,
+    )
 
 
 @register("game", "stag-hunt game: one swarm per UAV, Pareto-dominance bests (the paper)")
@@ -28,16 +46,6 @@ def solve_game(
     rng: np.random.Generator,
     progress: Progress | None = None,
     *,
-    engine: "Engine | str | None" = None,
-    threads: int | None = None,
+    runner: SwarmRunner = run_swarm,
 ) -> SolverOutput:
-    """``engine``/``threads``: see :func:`staghunt.solvers.swarm.swarm_runner`."""
-    model = CostModel.from_scenario(scenario)
-    problem = team_problem(model, settings.waypoints, settings.velocity_fraction, "players")
-    out = swarm_runner(engine, threads)(problem, settings, rng, progress)
-    return SolverOutput(
-        waypoints=problem.team_waypoints(out.best[None])[0],
-        history=out.record_history,
-        objective_history=out.history,
-        evaluations=out.particle_evaluations * model.n_uavs,
-    )
+    return solve_team(scenario, settings, rng, progress, runner, "players")

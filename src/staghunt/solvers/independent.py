@@ -26,7 +26,6 @@ Output, with ``I`` iterations and ``N`` UAVs:
 from __future__ import annotations
 
 import dataclasses
-from typing import Any
 
 import numpy as np
 
@@ -34,7 +33,7 @@ from staghunt.costs import CostModel, evaluate
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import team_problem
-from staghunt.solvers.swarm import Progress, run_swarm
+from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
 def solo_model(model: CostModel, n: int) -> CostModel:
@@ -64,15 +63,6 @@ def solo_model(model: CostModel, n: int) -> CostModel:
     return dataclasses.replace(model, **frozen)
 
 
-def _runner(engine: Any, threads: int | None) -> Any:
-    """The ``run_swarm`` of the requested engine (``None``: the NumPy reference loop)."""
-    if engine is None:
-        return run_swarm
-    from staghunt.engine import get_engine  # imported here: staghunt.engine imports the solvers
-
-    return get_engine(engine, threads).run_swarm
-
-
 class _Offset:
     """Progress of UAV ``n``'s run reported as part of the ``N`` runs in a row."""
 
@@ -90,13 +80,9 @@ def solve_independent(
     rng: np.random.Generator,
     progress: Progress | None = None,
     *,
-    engine: Any = None,
-    threads: int | None = None,
+    runner: SwarmRunner = run_swarm,
 ) -> SolverOutput:
-    """``engine``: ``None`` for the NumPy reference loop, else an engine or engine name for
-    :func:`staghunt.engine.get_engine` (with ``threads``)."""
     model = CostModel.from_scenario(scenario)
-    run = _runner(engine, threads)
     N, K = model.n_uavs, settings.waypoints
     waypoints = np.empty((N, K, 3))
     own = np.empty((settings.iterations + 1, N))
@@ -104,10 +90,10 @@ def solve_independent(
     for n in range(N):
         problem = team_problem(solo_model(model, n), K, settings.velocity_fraction, "players")
         report = None if progress is None else _Offset(progress, n, N, settings.iterations)
-        out = run(problem, settings, rng, report)
+        out = runner(problem, settings, rng, report)
         waypoints[n] = problem.team_waypoints(out.best[None])[0, 0]
         own[:, n] = out.history[:, 0]
-        evaluations += out.particle_evaluations * 1  # one UAV path varies per particle
+        evaluations += out.path_evaluations
     history = own.copy()
     history[-1] = evaluate(model, waypoints[None]).total[0]
     return SolverOutput(

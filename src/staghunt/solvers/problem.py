@@ -9,12 +9,15 @@ Shapes: ``S`` swarms, ``N`` UAVs, ``K`` free waypoints, ``P`` particles.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from staghunt.costs import CostModel, evaluate
 from staghunt.encoding import SearchSpace, decode, search_space
+
+if TYPE_CHECKING:
+    from staghunt.scenario.model import SolverSettings
 
 
 @dataclass(frozen=True, eq=False)
@@ -40,6 +43,13 @@ class SwarmProblem:
     objective: Literal["players", "sum"]
     players: tuple[int, ...]
     fixed: np.ndarray | None = None
+
+    def path_evaluations(self, settings: "SolverSettings") -> int:
+        """Single-UAV path evaluations a run spends: ``particles * (iterations + 1)`` joint
+        evaluations, each counting once per UAV path that varies with the particle (the UAVs
+        that follow a swarm; fixed paths are not counted). The one place budgets are counted."""
+        varying = int(np.count_nonzero(self.member_of >= 0))
+        return settings.particles * (settings.iterations + 1) * varying
 
     @property
     def n_objectives(self) -> int:

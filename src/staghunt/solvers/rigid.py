@@ -10,8 +10,6 @@ the centre, must clear the obstacles; that sum is what the paper calls the virtu
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 import numpy as np
 
 from staghunt.costs import CostModel, to_absolute
@@ -19,10 +17,7 @@ from staghunt.encoding import decode, search_space
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress, swarm_runner
-
-if TYPE_CHECKING:
-    from staghunt.engine import Engine
+from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
 class FormationTooLarge(ValueError):
@@ -41,13 +36,11 @@ def solve_rigid(
     rng: np.random.Generator,
     progress: Progress | None = None,
     *,
-    engine: "Engine | str | None" = None,
-    threads: int | None = None,
+    runner: SwarmRunner = run_swarm,
 ) -> SolverOutput:
-    """``engine``/``threads``: see :func:`staghunt.solvers.swarm.swarm_runner`."""
     model = CostModel.from_scenario(scenario)
     problem = rigid_problem(model, settings.waypoints, settings.velocity_fraction)
-    out = swarm_runner(engine, threads)(problem, settings, rng, progress)
+    out = runner(problem, settings, rng, progress)
     leader = decode(out.best[None], problem.starts, problem.lower, problem.upper)[0, 0]  # (K, 3)
     goal = model.goals.mean(axis=0, keepdims=True)
     leader_full = np.concatenate([problem.starts, leader, goal], axis=0)
@@ -55,7 +48,7 @@ def solve_rigid(
         waypoints=problem.team_waypoints(out.best[None])[0],
         history=out.record_history,
         objective_history=out.history,
-        evaluations=out.particle_evaluations * model.n_uavs,
+        evaluations=out.path_evaluations,
         leader_path=to_absolute(model.terrain, leader_full),
     )
 

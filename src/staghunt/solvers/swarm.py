@@ -9,7 +9,7 @@ every swarm together forms joint allocation ``i``, evaluated as a whole into a c
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Protocol
+from typing import Callable, Protocol
 
 import numpy as np
 
@@ -17,9 +17,6 @@ from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.dominance import best_index, dominates
 from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.pso import position_step, velocity_step
-
-if TYPE_CHECKING:
-    from staghunt.engine import Engine
 
 
 class Progress(Protocol):
@@ -31,8 +28,8 @@ class SwarmOutcome:
     """``best``: ``(S, K, 3)`` spherical global best; ``best_cost``: ``(C,)``;
     ``history``: ``(iterations + 1, C)`` global-best cost after initialisation and each
     iteration; ``record_history``: ``(iterations + 1, R)`` its per-UAV record;
-    ``history_violation``: ``(iterations + 1,)``; ``particle_evaluations``: joint allocations
-    evaluated."""
+    ``history_violation``: ``(iterations + 1,)``; ``path_evaluations``: single-UAV path
+    evaluations spent (:meth:`SwarmProblem.path_evaluations`)."""
 
     best: np.ndarray
     best_cost: np.ndarray
@@ -40,7 +37,7 @@ class SwarmOutcome:
     history: np.ndarray
     record_history: np.ndarray
     history_violation: np.ndarray
-    particle_evaluations: int
+    path_evaluations: int
 
 
 def run_swarm(
@@ -95,16 +92,10 @@ def run_swarm(
         history=history,
         record_history=rhistory,
         history_violation=hviol,
-        particle_evaluations=P * (settings.iterations + 1),
+        path_evaluations=problem.path_evaluations(settings),
     )
 
 
-def swarm_runner(engine: "Engine | str | None" = None, threads: int | None = None) -> Callable[..., SwarmOutcome]:
-    """The ``run_swarm`` of ``engine``: ``None`` gives :func:`run_swarm` (the NumPy reference
-    loop); an engine or engine name goes through :func:`staghunt.engine.get_engine` (with
-    ``threads``). Same signature and contract as :func:`run_swarm`."""
-    if engine is None:
-        return run_swarm
-    from staghunt.engine import get_engine  # here: staghunt.engine imports this module
-
-    return get_engine(engine, threads).run_swarm
+SwarmRunner = Callable[..., SwarmOutcome]
+"""What runs a :class:`SwarmProblem`: :func:`run_swarm` (NumPy reference) or an engine's
+``run_swarm``, with the signature and contract of :func:`run_swarm`."""
