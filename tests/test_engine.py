@@ -314,3 +314,23 @@ def test_engine_names():
         get_engine("fortran")
     with pytest.raises(ValueError):
         get_engine("numba", threads=0)
+
+
+def test_numba_plan_keeps_the_paths_the_kernel_evaluated():
+    """The plan is the team waypoints the kernel decoded and judged (its trigonometry rounds
+    differently from NumPy's), so a plan grazing a constraint keeps its verdict; they agree with
+    NumPy's decoding of the same particle to rounding."""
+    import staghunt
+    from staghunt.costs import CostModel
+    from staghunt.solvers.problem import team_problem
+
+    scenario = staghunt.load_scenario("scenario2")
+    settings = scenario.solver.with_(particles=40, iterations=15)
+    model = CostModel.from_scenario(scenario)
+    problem = team_problem(model, settings.waypoints, settings.velocity_fraction, "players")
+    engine = get_engine("numba", threads=1)
+    out = engine.run_swarm(problem, settings, np.random.default_rng(3))
+    np.testing.assert_allclose(out.best_waypoints, problem.team_waypoints(out.best[None])[0], rtol=0, atol=1e-9)
+    result = staghunt.plan(scenario, "game", seed=3, settings=settings, engine="numba", threads=1)
+    assert result.engine == "numba"
+    np.testing.assert_allclose(result.costs.total[0], result.history[-1], rtol=1e-9)

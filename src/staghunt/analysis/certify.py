@@ -243,7 +243,7 @@ def certify_plan(
         rng = np.random.default_rng([int(seed), n])
         out = search(problem, run_settings, rng, report, initial)
         best = float(out.best_cost[0])
-        deviation = problem.team_waypoints(out.best[None])[0, n]
+        deviation = np.array(out.best_waypoints[n])
         if out.best_violation > 0 or not math.isfinite(best):
             best, deviation = float(J[n]), wp[n].copy()  # only when the warm start itself broke
         gap = max(0.0, float(J[n]) - best)

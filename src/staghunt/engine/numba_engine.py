@@ -322,6 +322,7 @@ def _run(
                 progress(it, iterations, gcost[:, 0].copy())
     return SwarmOutcome(
         best=run.gbest.copy(),
+        best_waypoints=_decode_one(ma, sa, N, K, S, C, run.gbest),
         best_cost=gcost[:, 0].copy(),
         best_violation=gviol,
         history=history,
@@ -329,6 +330,17 @@ def _run(
         history_violation=hviol,
         path_evaluations=problem.path_evaluations(settings),
     )
+
+
+def _decode_one(ma: ModelArrays, sa: SwarmArrays, N: int, K: int, S: int, C: int,
+                particle: np.ndarray) -> np.ndarray:
+    """Team waypoints ``(N, K, 3)`` of one spherical particle ``(S, K, 3)``, decoded by the kernel
+    itself (its trigonometry rounds differently from NumPy's)."""
+    one = _Pass(ma, sa, N, K, S, C, 1, initial=np.ascontiguousarray(particle))
+    one.ensure_scratch(1)
+    one.block(0, 1, 0, ("uav_pass",))
+    w = one.scratch[0]
+    return np.stack([w.px[:, 1:K + 1, 0], w.py[:, 1:K + 1, 0], w.ph[:, :, 0]], axis=-1).copy()
 
 
 class NumbaEngine:

@@ -32,7 +32,7 @@ def solve_team(
     problem = team_problem(model, settings.waypoints, settings.velocity_fraction, objective)
     out = runner(problem, settings, rng, progress)
     return SolverOutput(
-        waypoints=problem.team_waypoints(out.best[None])[0],
+        waypoints=out.best_waypoints,
         history=out.record_history,
         objective_history=out.history,
         evaluations=out.path_evaluations,

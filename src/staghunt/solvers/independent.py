@@ -91,7 +91,7 @@ def solve_independent(
         problem = team_problem(solo_model(model, n), K, settings.velocity_fraction, "players")
         report = None if progress is None else _Offset(progress, n, N, settings.iterations)
         out = runner(problem, settings, rng, report)
-        waypoints[n] = problem.team_waypoints(out.best[None])[0, 0]
+        waypoints[n] = out.best_waypoints[0]
         own[:, n] = out.history[:, 0]
         evaluations += out.path_evaluations
     history = own.copy()

@@ -45,7 +45,7 @@ def solve_rigid(
     goal = model.goals.mean(axis=0, keepdims=True)
     leader_full = np.concatenate([problem.starts, leader, goal], axis=0)
     return SolverOutput(
-        waypoints=problem.team_waypoints(out.best[None])[0],
+        waypoints=out.best_waypoints,
         history=out.record_history,
         objective_history=out.history,
         evaluations=out.path_evaluations,

@@ -25,13 +25,16 @@ class Progress(Protocol):
 
 @dataclass(frozen=True, eq=False)
 class SwarmOutcome:
-    """``best``: ``(S, K, 3)`` spherical global best; ``best_cost``: ``(C,)``;
+    """``best``: ``(S, K, 3)`` spherical global best; ``best_waypoints``: ``(N, K, 3)`` the team
+    waypoints it decodes to, exactly as the engine evaluated them (engines may decode with
+    different rounding, and a plan grazing a constraint must keep the verdict it was given); ``best_cost``: ``(C,)``;
     ``history``: ``(iterations + 1, C)`` global-best cost after initialisation and each
     iteration; ``record_history``: ``(iterations + 1, R)`` its per-UAV record;
     ``history_violation``: ``(iterations + 1,)``; ``path_evaluations``: single-UAV path
     evaluations spent (:meth:`SwarmProblem.path_evaluations`)."""
 
     best: np.ndarray
+    best_waypoints: np.ndarray
     best_cost: np.ndarray
     best_violation: float
     history: np.ndarray
@@ -87,6 +90,7 @@ def run_swarm(
             progress(it, settings.iterations, gcost)
     return SwarmOutcome(
         best=gbest,
+        best_waypoints=problem.team_waypoints(gbest[None])[0],
         best_cost=gcost,
         best_violation=gviol,
         history=history,
