@@ -16,7 +16,6 @@ import argparse
 import json
 import math
 import os
-import re
 import shutil
 import sys
 import time
@@ -25,14 +24,21 @@ from typing import Any, Sequence, TextIO
 
 import numpy as np
 
-from staghunt.cli_analysis import add_commands, add_engine_options, engine_kwargs
+from staghunt.cli_analysis import add_commands
+from staghunt.cli_support import (
+    EXIT_INTERRUPTED,
+    EXIT_NEGATIVE,
+    EXIT_OK,
+    EXIT_USAGE,
+    PROG,
+    add_engine_options,
+    engine_kwargs,
+    error,
+    int_at_least,
+    os_reason,
+    safe_name,
+)
 
-EXIT_OK = 0
-EXIT_USAGE = 2
-EXIT_INFEASIBLE = 3
-EXIT_INTERRUPTED = 130
-
-PROG = "staghunt"
 
 
 class UsageError(Exception):
@@ -44,20 +50,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str) -> Any:  # type: ignore[override]
         raise UsageError(f"{message} (see '{self.prog} --help')")
-
-
-def _int_at_least(low: int) -> Any:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
-        return value
-
-    parse.__name__ = f"integer >= {low}"
-    return parse
 
 
 # ------------------------------------------------------------------------------------------------
@@ -99,10 +91,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
     p.add_argument("--method", choices=list(METHODS), default="game", help="planning method (default: game)")
-    p.add_argument("--seed", type=_int_at_least(0), default=0, help="random seed (default: 0)")
-    p.add_argument("--particles", type=_int_at_least(1), help="particles per swarm")
-    p.add_argument("--iterations", type=_int_at_least(0), help="swarm iterations")
-    p.add_argument("--waypoints", type=_int_at_least(1), help="free waypoints K per UAV")
+    p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default: 0)")
+    p.add_argument("--particles", type=int_at_least(1), help="particles per swarm")
+    p.add_argument("--iterations", type=int_at_least(0), help="swarm iterations")
+    p.add_argument("--waypoints", type=int_at_least(1), help="free waypoints K per UAV")
     p.add_argument(
         "--out",
         metavar="DIR",
@@ -180,7 +172,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if args.out is not None:
         out_dir = Path(args.out)
     else:
-        out_dir = Path("runs") / f"{_safe_name(scenario.name)}-{args.method}-s{args.seed}"
+        out_dir = Path("runs") / f"{safe_name(scenario.name)}-{args.method}-s{args.seed}"
     check_out_dir(out_dir)
 
     reporter = ProgressReporter(sys.stderr, quiet=args.quiet)
@@ -201,13 +193,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
-        raise ValueError(f"cannot create output directory {str(out_dir)!r}: {_os_reason(exc)}") from None
+        raise ValueError(f"cannot create output directory {str(out_dir)!r}: {os_reason(exc)}") from None
     path = write_result(result, out_dir / "result.json")
     print(f"wrote {path}")
 
     if not args.no_plots:
         _write_figures(result, out_dir)
-    return EXIT_OK if result.feasible else EXIT_INFEASIBLE
+    return EXIT_OK if result.feasible else EXIT_NEGATIVE
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -219,7 +211,7 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     waypoints = read_paths(args.paths, scenario)
     out = evaluate_paths(scenario, waypoints)
     sys.stdout.write(dumps_strict(out))
-    return EXIT_OK if out["status"] == "feasible" else EXIT_INFEASIBLE
+    return EXIT_OK if out["status"] == "feasible" else EXIT_NEGATIVE
 
 
 def _write_figures(result: Any, out_dir: Path) -> None:
@@ -240,12 +232,6 @@ def _write_figures(result: Any, out_dir: Path) -> None:
 # ------------------------------------------------------------------------------------------------
 # Helpers
 # ------------------------------------------------------------------------------------------------
-
-
-def _safe_name(name: str) -> str:
-    """A scenario name usable as part of a directory name."""
-    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
-    return cleaned or "scenario"
 
 
 def check_out_dir(out_dir: Path) -> None:
@@ -383,19 +369,10 @@ class ProgressReporter:
             self.drawn = False
 
 
-def _os_reason(exc: OSError) -> str:
-    reason = exc.strerror or str(exc)
-    return f"{reason}: {exc.filename!r}" if exc.filename else reason
-
-
 def _one_line(exc: BaseException) -> str:
-    text = _os_reason(exc) if isinstance(exc, OSError) else str(exc)
+    text = os_reason(exc) if isinstance(exc, OSError) else str(exc)
     text = " ".join(text.split()) or type(exc).__name__
     return text
-
-
-def _error(message: str) -> None:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -410,8 +387,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         try:
             args = parser.parse_args(argv)
         except UsageError as exc:
-            _error(_one_line(exc))
-            return EXIT_USAGE
+            return error(_one_line(exc))
         except SystemExit as exc:  # --help, --version
             return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_USAGE)
         try:
@@ -425,8 +401,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 pass
             return 1
         except (ValueError, OSError) as exc:  # ScenarioError is a ValueError
-            _error(_one_line(exc))
-            return EXIT_USAGE
+            return error(_one_line(exc))
     except KeyboardInterrupt:
         print(f"{PROG}: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED

@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import re
 import shutil
 import sys
 import time
@@ -26,26 +25,19 @@ import numpy as np
 
 from staghunt.analysis.certify import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecord
+from staghunt.cli_support import (
+    EXIT_INTERRUPTED,
+    EXIT_NEGATIVE,
+    EXIT_OK,
+    PROG,
+    add_engine_options,
+    engine_kwargs,
+    error,
+    int_at_least,
+    os_reason,
+    safe_name,
+)
 
-PROG = "staghunt"
-EXIT_OK = 0
-EXIT_USAGE = 2
-EXIT_NOT_CERTIFIED = 3
-EXIT_INTERRUPTED = 130
-
-
-def _int_at_least(low: int) -> Any:
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}") from None
-        if value < low:
-            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
-        return value
-
-    parse.__name__ = f"integer >= {low}"
-    return parse
 
 
 def _epsilon(text: str) -> float:
@@ -81,13 +73,13 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--methods", metavar="LIST", default=",".join(DEFAULT_METHODS),
                    help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)})")
     p.add_argument("--seeds", metavar="SEEDS", default="1-10", help="seeds, e.g. 1-10, 1,4,7 or 1-3,8 (default: 1-10)")
-    p.add_argument("--particles", type=_int_at_least(1), metavar="N", help="particles per swarm (default: the scenario's)")
-    p.add_argument("--iterations", type=_int_at_least(0), metavar="N", help="swarm iterations (default: the scenario's)")
-    p.add_argument("--waypoints", type=_int_at_least(1), metavar="N", help="free waypoints K per UAV (default: the scenario's)")
+    p.add_argument("--particles", type=int_at_least(1), metavar="N", help="particles per swarm (default: the scenario's)")
+    p.add_argument("--iterations", type=int_at_least(0), metavar="N", help="swarm iterations (default: the scenario's)")
+    p.add_argument("--waypoints", type=int_at_least(1), metavar="N", help="free waypoints K per UAV (default: the scenario's)")
     p.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scenario>-compare)")
-    p.add_argument("--certify-particles", type=_int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
+    p.add_argument("--certify-particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
                    help=f"best-response search particles per UAV (default: {DEFAULT_PARTICLES})")
-    p.add_argument("--certify-iterations", type=_int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
+    p.add_argument("--certify-iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
                    help=f"best-response search iterations per UAV (default: {DEFAULT_ITERATIONS})")
     p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
                    help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g})")
@@ -110,38 +102,17 @@ def add_commands(subparsers: Any) -> None:
         "infeasible), 2 bad input, 130 interrupted.",
     )
     p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
-    p.add_argument("--particles", type=_int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
+    p.add_argument("--particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
                    help=f"particles of each UAV's search (default: {DEFAULT_PARTICLES})")
-    p.add_argument("--iterations", type=_int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
+    p.add_argument("--iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
                    help=f"iterations of each UAV's search (default: {DEFAULT_ITERATIONS})")
     p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
                    help=f"relative tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
-    p.add_argument("--seed", type=_int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
+    p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
     p.add_argument("--out", metavar="FILE", help="also write the certificate as JSON to FILE")
     add_engine_options(p)
     p.add_argument("--quiet", action="store_true", help="no progress on stderr")
     p.set_defaults(func=cmd_certify)
-
-
-def add_engine_options(p: argparse.ArgumentParser) -> None:
-    """``--engine`` and ``--threads`` (shared by plan, compare and certify)."""
-    from staghunt.engine import ENGINE_NAMES
-
-    p.add_argument("--engine", choices=list(ENGINE_NAMES),
-                   default="auto", help="numba (compiled), numpy (reference) or auto: numba if "
-                   "installed (default: auto)")
-    p.add_argument("--threads", type=_int_at_least(1), metavar="N",
-                   help="threads of the numba engine (default: adaptive)")
-
-
-def engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:
-    """``engine``/``threads`` keyword arguments from the parsed options."""
-    out: dict[str, Any] = {}
-    if getattr(args, "engine", None) is not None:
-        out["engine"] = args.engine
-    if getattr(args, "threads", None) is not None:
-        out["threads"] = args.threads
-    return out
 
 
 # ------------------------------------------------------------------------------------------------
@@ -253,22 +224,6 @@ def _pct(v: float) -> str:
 # ------------------------------------------------------------------------------------------------
 
 
-def _error(message: str) -> int:
-    text = " ".join(str(message).split())
-    print(f"{PROG}: error: {text}", file=sys.stderr)
-    return EXIT_USAGE
-
-
-def _os_reason(exc: OSError) -> str:
-    reason = exc.strerror or str(exc)
-    return f"{reason}: {exc.filename!r}" if exc.filename else reason
-
-
-def _safe_name(name: str) -> str:
-    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
-    return cleaned or "scenario"
-
-
 def _check_out_dir(out: Path) -> None:
     if out.exists() and not out.is_dir():
         raise ValueError(f"output directory {str(out)!r} exists and is not a directory")
@@ -292,10 +247,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations,
                                          waypoints=args.waypoints)
         validate_settings(settings)
-        out = Path(args.out) if args.out else Path("runs") / f"{_safe_name(scenario.name)}-compare"
+        out = Path(args.out) if args.out else Path("runs") / f"{safe_name(scenario.name)}-compare"
         _check_out_dir(out)
     except (ValueError, OSError) as exc:
-        return _error(_os_reason(exc) if isinstance(exc, OSError) else str(exc))
+        return error(os_reason(exc) if isinstance(exc, OSError) else str(exc))
     certify = None if args.no_certify else CertifyOptions(
         args.certify_particles, args.certify_iterations, args.epsilon)
     total = len(methods) * len(seeds)
@@ -323,7 +278,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         listener.close()
-        return _error(_os_reason(exc) if isinstance(exc, OSError) else str(exc))
+        return error(os_reason(exc) if isinstance(exc, OSError) else str(exc))
     listener.close()
     print(format_report(report))
     written = [out / "compare.json", out / "compare.csv"]
@@ -383,7 +338,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         line.close()
-        return _error(_os_reason(exc) if isinstance(exc, OSError) else str(exc))
+        return error(os_reason(exc) if isinstance(exc, OSError) else str(exc))
     line.close()
     print(
         f"{args.result}: method {data.get('method')}, seed {data.get('seed')}, scenario "
@@ -398,6 +353,6 @@ def cmd_certify(args: argparse.Namespace) -> int:
         try:
             path = write_json_atomic(certificate_to_dict(cert), args.out)
         except OSError as exc:
-            return _error(f"cannot write {args.out!r}: {_os_reason(exc)}")
+            return error(f"cannot write {args.out!r}: {os_reason(exc)}")
         print(f"wrote {path}")
-    return EXIT_OK if cert.is_equilibrium else EXIT_NOT_CERTIFIED
+    return EXIT_OK if cert.is_equilibrium else EXIT_NEGATIVE

@@ -1,7 +1,7 @@
 """Figures of a plan (paper Figs. 4-8): 3-D paths, top view, altitude and convergence.
 
-This is the only module of the package that imports matplotlib. Every function builds a fresh
-:class:`matplotlib.figure.Figure` without ``pyplot``, so no global state (backend, current
+With :mod:`staghunt.analysis.compare_plots`, the only module of the package that imports
+matplotlib. Every function builds a fresh :class:`matplotlib.figure.Figure` without ``pyplot``, so no global state (backend, current
 figure, figure registry) changes and a figure is freed as soon as it is no longer referenced.
 
 Each UAV keeps one colour in every figure (:func:`uav_colour`); obstacles are drawn in amber,
@@ -10,8 +10,6 @@ the virtual leader of the ``rigid`` method in black, dashed.
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
@@ -21,6 +19,7 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
 
+from staghunt.io.atomic import atomic_file
 from staghunt.result import PlanResult
 
 __all__ = [
@@ -471,17 +470,8 @@ FIGURES: dict[str, Callable[[PlanResult], Figure]] = {
 
 def _save_atomic(fig: Figure, target: Path, dpi: int) -> None:
     """Write ``fig`` to ``target`` through a temporary file in the same directory."""
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.stem}.", suffix=".png.tmp")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fig.savefig(fh, format="png", dpi=dpi)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    with atomic_file(target, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=dpi)
 
 
 def save_figures(result: PlanResult, out_dir: Path | str, dpi: int = 130) -> list[Path]:

@@ -31,7 +31,6 @@ import json
 import math
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable, Sequence
@@ -40,6 +39,7 @@ import numpy as np
 
 from staghunt.checks import Metrics, plan_metrics
 from staghunt.costs import CostModel, evaluate
+from staghunt.io.atomic import write_text_atomic
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.dominance import dominates, preference
 
@@ -228,26 +228,6 @@ def run_file(out_dir: Path, method: str, seed: int) -> Path:
 
 def certificate_file(out_dir: Path, method: str, seed: int) -> Path:
     return Path(out_dir) / "runs" / f"{method}-s{seed}.certify.json"
-
-
-def write_text_atomic(text: str, path: Path) -> Path:
-    """Write ``text`` to ``path`` through a temporary file and ``os.replace`` (never half-written)."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    return path
 
 
 # ------------------------------------------------------------------------------------------------

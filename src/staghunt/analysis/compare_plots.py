@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import tempfile
 from pathlib import Path
 from typing import Sequence
 
@@ -20,6 +19,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Circle, Patch
 
 from staghunt.analysis.compare import CompareReport, RunRecord, best_seed
+from staghunt.io.atomic import atomic_file
 from staghunt.plots import uav_colour
 
 _METHOD_COLOURS = {
@@ -156,18 +156,9 @@ def save_compare_figure(report: CompareReport, path: str | os.PathLike[str], dpi
     """Draw :func:`plot_compare` and write it to ``path`` (PNG) atomically."""
     target = Path(path)
     fig = plot_compare(report)
-    fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.stem}.", suffix=".png.tmp")
     try:
-        with os.fdopen(fd, "wb") as fh:
+        with atomic_file(target, "wb") as fh:
             fig.savefig(fh, format="png", dpi=dpi)
-        os.chmod(tmp, 0o644)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
     finally:
         fig.clear()
     return target

@@ -42,12 +42,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from dataclasses import fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from staghunt.io.atomic import write_text_atomic
 
 from staghunt.costs import TERM_NAMES
 
@@ -253,50 +254,7 @@ def write_json_atomic(data: Any, path: str | os.PathLike[str]) -> Path:
     The text is produced before any file is touched; if anything fails (or the run is
     interrupted) the temporary file is removed and ``path`` is left as it was.
     """
-    dest = Path(path)
-    text = dumps_strict(data)
-    directory = dest.parent if str(dest.parent) else Path(".")
-    fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            os.chmod(tmp, _new_file_mode(dest))
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, dest)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    _fsync_dir(directory)
-    return dest
-
-
-def _new_file_mode(dest: Path) -> int:
-    """The mode an ordinary new file would get (``mkstemp`` creates ``0o600``); keep an existing file's."""
-    try:
-        return dest.stat().st_mode & 0o777
-    except OSError:
-        pass
-    umask = os.umask(0)
-    os.umask(umask)
-    return 0o666 & ~umask
-
-
-def _fsync_dir(directory: Path) -> None:
-    """Best effort: make the rename durable (not possible on every platform)."""
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+    return write_text_atomic(dumps_strict(data), path)
 
 
 def write_result(result: Any, path: str | os.PathLike[str]) -> Path:
