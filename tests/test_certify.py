@@ -2,10 +2,8 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
 
 import numpy as np
 import pytest
@@ -150,31 +148,10 @@ def test_bad_inputs_are_value_errors(alone):
 
 
 def run_cli(argv: list[str]) -> int:
-    """``staghunt`` in-process: the real CLI once ``certify`` is hooked into it, else the
-    subcommands on a minimal parser with the CLI's conventions."""
+    """``staghunt`` in-process."""
     from staghunt import cli
 
-    parser = cli.build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    if "certify" in sub.choices:
-        return cli.main(argv)
-    from staghunt.cli_analysis import add_commands
-
-    class _Usage(Exception):
-        pass
-
-    class _Parser(argparse.ArgumentParser):
-        def error(self, message):
-            raise _Usage(message)
-
-    p = _Parser(prog="staghunt")
-    add_commands(p.add_subparsers(dest="command", required=True))
-    try:
-        args = p.parse_args(argv)
-    except _Usage as exc:
-        print(f"staghunt: error: {exc}", file=sys.stderr)
-        return 2
-    return args.func(args)
+    return cli.main(argv)
 
 
 @pytest.fixture(scope="module")
