@@ -16,7 +16,6 @@ import argparse
 import json
 import math
 import os
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -31,6 +30,7 @@ from staghunt.cli_support import (
     EXIT_OK,
     EXIT_USAGE,
     PROG,
+    StatusLine,
     add_engine_options,
     engine_kwargs,
     error,
@@ -320,53 +320,36 @@ class ProgressReporter:
     def __init__(self, stream: TextIO, quiet: bool = False) -> None:
         self.stream = stream
         self.quiet = quiet
-        try:
-            self.tty = bool(stream.isatty())
-        except (AttributeError, ValueError):
-            self.tty = False
+        self.line = StatusLine(stream)
         self.start = time.perf_counter()
-        self.last_draw = -math.inf
-        self.drawn = False
-        self.next_line = 0
 
     def __call__(self, iteration: int, total: int, best_cost: np.ndarray) -> None:
         if self.quiet or total <= 0:
             return
-        now = time.perf_counter()
-        elapsed = now - self.start
+        elapsed = time.perf_counter() - self.start
         eta = elapsed / iteration * (total - iteration) if iteration > 0 else math.inf
         frac = iteration / total
         best = " ".join(_g(v) for v in np.atleast_1d(best_cost))
-        if self.tty:
-            if now - self.last_draw < 0.1 and iteration < total:
-                return
-            self.last_draw = now
-            cols = shutil.get_terminal_size((80, 24)).columns
-            bar_w = 20
-            filled = int(round(frac * bar_w))
-            text = (
-                f"[{'#' * filled}{'.' * (bar_w - filled)}] {iteration}/{total} {frac:4.0%} "
-                f"{_clock(elapsed)} ETA {_clock(eta)}  best J: {best}"
+        if self.line.tty:
+            filled = int(round(frac * 20))
+            self.line.draw(
+                f"[{'#' * filled}{'.' * (20 - filled)}] {iteration}/{total} {frac:4.0%} "
+                f"{_clock(elapsed)} ETA {_clock(eta)}  best J: {best}",
+                force=iteration >= total,
             )
-            self.stream.write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
-            self.stream.flush()
-            self.drawn = True
-        else:
-            step = max(1, math.ceil(total / 10))
-            if iteration % step and iteration != total:
-                return
-            self.stream.write(
-                f"{PROG}: iteration {iteration}/{total} ({frac:.0%}), elapsed {elapsed:.1f} s, "
-                f"ETA {eta:.1f} s, best J: {best}\n"
-            )
-            self.stream.flush()
+            return
+        step = max(1, math.ceil(total / 10))
+        if iteration % step and iteration != total:
+            return
+        self.stream.write(
+            f"{PROG}: iteration {iteration}/{total} ({frac:.0%}), elapsed {elapsed:.1f} s, "
+            f"ETA {eta:.1f} s, best J: {best}\n"
+        )
+        self.stream.flush()
 
     def close(self) -> None:
         """End the bar's line (also when the run was interrupted)."""
-        if self.drawn:
-            self.stream.write("\n")
-            self.stream.flush()
-            self.drawn = False
+        self.line.close(keep=True)
 
 
 def _one_line(exc: BaseException) -> str:

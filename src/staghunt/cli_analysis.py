@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import shutil
 import sys
 import time
 from pathlib import Path
@@ -30,6 +29,7 @@ from staghunt.cli_support import (
     EXIT_NEGATIVE,
     EXIT_OK,
     PROG,
+    StatusLine,
     add_engine_options,
     engine_kwargs,
     error,
@@ -120,49 +120,6 @@ def add_commands(subparsers: Any) -> None:
 # ------------------------------------------------------------------------------------------------
 
 
-def _is_tty(stream: TextIO) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):
-        return False
-
-
-class _Line:
-    """A status line redrawn in place on a terminal (at most ~10 times a second)."""
-
-    def __init__(self, stream: TextIO) -> None:
-        self.stream = stream
-        self.tty = _is_tty(stream)
-        self.last = -math.inf
-        self.drawn = False
-
-    def draw(self, text: str, force: bool = False) -> None:
-        if not self.tty:
-            return
-        now = time.perf_counter()
-        if not force and now - self.last < 0.1:
-            return
-        self.last = now
-        cols = shutil.get_terminal_size((80, 24)).columns
-        self.stream.write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
-        self.stream.flush()
-        self.drawn = True
-
-    def say(self, text: str) -> None:
-        """A permanent line (clears the status line first)."""
-        if self.drawn:
-            self.stream.write("\r\x1b[K")
-            self.drawn = False
-        self.stream.write(text + "\n")
-        self.stream.flush()
-
-    def close(self) -> None:
-        if self.drawn:
-            self.stream.write("\r\x1b[K")
-            self.stream.flush()
-            self.drawn = False
-
-
 def _g(v: float) -> str:
     v = float(v)
     return ("inf" if v > 0 else "-inf") if math.isinf(v) else f"{v:.4g}"
@@ -172,7 +129,7 @@ class _CompareProgress(CompareListener):
     """Progress of ``compare`` on stderr: one line per run; on a terminal also a live status line."""
 
     def __init__(self, stream: TextIO, quiet: bool) -> None:
-        self.line = _Line(stream)
+        self.line = StatusLine(stream)
         self.quiet = quiet
         self.prefix = ""
         self.t0 = time.perf_counter()
@@ -310,7 +267,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
     from staghunt.analysis.certify import certificate_table, certificate_to_dict, certify_result_file
     from staghunt.io.result_json import read_result, write_json_atomic
 
-    line = _Line(sys.stderr)
+    line = StatusLine(sys.stderr)
 
     def progress(uav: int, n_uavs: int, iteration: int, total: int) -> None:
         if not args.quiet:

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import argparse
+import math
 import re
+import shutil
 import sys
-from typing import Any
+import time
+from typing import Any, TextIO
 
 PROG = "staghunt"
 EXIT_OK = 0
@@ -69,3 +72,44 @@ def safe_name(name: str) -> str:
     """A scenario name usable as part of a directory name."""
     cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
     return cleaned or "scenario"
+
+
+class StatusLine:
+    """A status line redrawn in place on a terminal (at most ~10 times a second); silent when the
+    stream is not a terminal."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        try:
+            self.tty = bool(stream.isatty())
+        except (AttributeError, ValueError):
+            self.tty = False
+        self.last = -math.inf
+        self.drawn = False
+
+    def draw(self, text: str, force: bool = False) -> None:
+        if not self.tty:
+            return
+        now = time.perf_counter()
+        if not force and now - self.last < 0.1:
+            return
+        self.last = now
+        cols = shutil.get_terminal_size((80, 24)).columns
+        self.stream.write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
+        self.stream.flush()
+        self.drawn = True
+
+    def say(self, text: str) -> None:
+        """A permanent line (clears the status line first)."""
+        if self.drawn:
+            self.stream.write("\r\x1b[K")
+            self.drawn = False
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def close(self, keep: bool = False) -> None:
+        """Clear the status line, or with ``keep`` end it so it stays on screen."""
+        if self.drawn:
+            self.stream.write("\n" if keep else "\r\x1b[K")
+            self.stream.flush()
+            self.drawn = False
