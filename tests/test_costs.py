@@ -128,6 +128,22 @@ def test_threat_every_branch_single_segment():
         assert depth[0, 0] == (1.0 if expected == INF else 0.0)
 
 
+def test_threat_min_clearance_moves_only_the_infeasible_boundary():
+    # Cylinder (0, 0, R=5), r = 1, c = 2, Delta = 10: infeasible below 8, band up to 16.
+    cyl = np.array([[0.0, 0.0, 5.0]])
+    r = np.array([1.0])
+    for y, expected, depth in [(20.0, 0.0, 0.0), (16.0, 0.0, 0.0), (10.0, 6.0, 0.0),
+                               (8.0, 8.0, 0.0), (7.5, INF, 0.5), (5.0, INF, 3.0)]:
+        d = segment_axis_distance(np.array([[-10.0, y], [10.0, y]])[None, None], cyl)
+        cost, dep = threat_cost(d, cyl, r, 10.0, 2.0)
+        assert cost[0, 0] == expected, y
+        assert dep[0, 0] == depth, y
+    # a clearance wider than the danger band: infeasible inside R + r + c, free beyond it
+    for y, expected in [(17.0, INF), (18.0, 0.0)]:
+        d = segment_axis_distance(np.array([[-10.0, y], [10.0, y]])[None, None], cyl)
+        assert threat_cost(d, cyl, r, 10.0, 12.0)[0][0, 0] == expected
+
+
 def test_threat_foot_outside_zero_length_and_sums():
     # Path xy: A=(8,6) -> B=(20,6) -> B (zero-length) -> C=(20,20).
     # C1 = (0, 0, R=5): inner 6, outer 16.   C2 = (24, 9, R=2): inner 3, outer 13.

@@ -102,7 +102,10 @@ def test_builtin_paper_values(name: str) -> None:
         climb_threshold_deg=0.0,
         desired_height=20.0,
         continuous_separation=True,
+        min_clearance=1.0,
     )
+    assert s.origin is not None and (s.origin.latitude, s.origin.longitude) == (47.397742, 8.545594)
+    assert (s.vehicle.max_speed, s.vehicle.max_acceleration, s.vehicle.cruise_speed) == (12.0, 3.0, 5.0)
     assert s.h_ref == 20.0
     assert s.solver == SolverSettings(
         particles=2000,
@@ -358,6 +361,20 @@ CASES: list[tuple[str, Callable[[dict[str, Any]], None], str]] = [
     ("danger margin < 0", setter("costs.danger_margin", -1.0), "costs.danger_margin: must be >= 0"),
     ("safe distance < 0", setter("costs.safe_distance", -0.5), "costs.safe_distance: must be >= 0"),
     ("big safe distance", setter("costs.safe_distance", 9.0), "team[1].start"),
+    ("clearance < 0", setter("costs.min_clearance", -1.0), "costs.min_clearance: must be >= 0"),
+    ("origin not a table", lambda d: d.update(origin=5), "origin: expected a table"),
+    ("origin lat", lambda d: d.update(origin={"latitude": 91.0, "longitude": 0.0, "altitude": 0.0}),
+     "origin.latitude: must lie in [-90, 90]"),
+    ("origin lon", lambda d: d.update(origin={"latitude": 0.0, "longitude": -181.0, "altitude": 0.0}),
+     "origin.longitude: must lie in [-180, 180]"),
+    ("origin missing alt", lambda d: d.update(origin={"latitude": 0.0, "longitude": 0.0}),
+     "origin.altitude: required key is missing"),
+    ("origin unknown key", lambda d: d.update(origin={"lat": 0.0}), "origin.lat: unknown key"),
+    ("vehicle zero speed", lambda d: d.update(vehicle={"max_speed": 0.0}), "vehicle.max_speed: must be > 0"),
+    ("vehicle nan", lambda d: d.update(vehicle={"max_acceleration": float("nan")}),
+     "vehicle.max_acceleration: must be a finite number"),
+    ("vehicle string", lambda d: d.update(vehicle={"cruise_speed": "fast"}), "vehicle.cruise_speed: expected a number"),
+    ("cruise > max", lambda d: d.update(vehicle={"cruise_speed": 20.0}), "vehicle.cruise_speed: must not exceed"),
 ]
 
 

@@ -94,12 +94,14 @@ def violations(model: CostModel, waypoints: np.ndarray, names: list[str]) -> lis
     abs_path = to_absolute(model.terrain, path)
     if model.cylinders.shape[0]:
         dist = segment_axis_distance(path[..., :2], model.cylinders)[0]
-        inner = model.cylinders[:, 2] + model.radius[:, None, None]
+        inner = model.cylinders[:, 2] + model.radius[:, None, None] + model.min_clearance
+        what = "body radius" + (f" and min clearance {model.min_clearance:g} m"
+                                if model.min_clearance > 0 else "")
         for n, s, t in zip(*np.nonzero(dist < inner)):
             cx, cy, R = model.cylinders[t]
             out.append(
                 f"{names[n]} segment {s} passes {inner[n, 0, t] - dist[n, s, t]:.3g} m inside "
-                f"obstacle {t + 1} (x={cx:g}, y={cy:g}, R={R:g}) plus body radius"
+                f"obstacle {t + 1} (x={cx:g}, y={cy:g}, R={R:g}) plus {what}"
             )
     for n, k in zip(*np.nonzero(waypoints[..., 2] < 0)):
         out.append(f"{names[n]} waypoint {k + 1} is {-waypoints[n, k, 2]:.3g} m below ground")

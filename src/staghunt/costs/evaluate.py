@@ -79,7 +79,8 @@ def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
     abs_path = to_absolute(model.terrain, path)
     length = path_length(abs_path)
     dist = segment_axis_distance(path[..., :2], model.cylinders)
-    threat, obstacle_depth = threat_cost(dist, model.cylinders, model.radius, model.danger_margin)
+    threat, obstacle_depth = threat_cost(dist, model.cylinders, model.radius, model.danger_margin,
+                                          model.min_clearance)
     altitude, ground_depth = altitude_cost(waypoints[..., 2], model.h_ref)
     turning, climb = smoothness_terms(
         abs_path, model.turning_threshold_deg, model.climb_threshold_deg

@@ -52,6 +52,7 @@ class CostModel:
     climb_threshold_deg: float
     h_ref: float
     continuous_separation: bool
+    min_clearance: float = 0.0
 
     @property
     def n_uavs(self) -> int:
@@ -87,6 +88,7 @@ class CostModel:
             climb_threshold_deg=float(c.climb_threshold_deg),
             h_ref=scenario.h_ref,
             continuous_separation=bool(c.continuous_separation),
+            min_clearance=float(c.min_clearance),
         )
 
 

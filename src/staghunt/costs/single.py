@@ -42,17 +42,20 @@ def segment_axis_distance(xy: np.ndarray, cylinders: np.ndarray) -> np.ndarray:
 
 
 def threat_cost(
-    dist: np.ndarray, cylinders: np.ndarray, radius: np.ndarray, margin: float
+    dist: np.ndarray, cylinders: np.ndarray, radius: np.ndarray, margin: float,
+    clearance: float = 0.0,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Threat term and obstacle violation.
 
-    ``dist``: ``(P, N, S, T)`` from :func:`segment_axis_distance`; ``radius``: ``(N,)`` body radii.
-    Per segment and cylinder: 0 beyond ``R + r + Delta``, ``inf`` strictly inside ``R + r``,
-    else ``R + r + Delta - d``. Returns ``(P, N)`` sums and ``(P, N)`` total penetration depth.
+    ``dist``: ``(P, N, S, T)`` from :func:`segment_axis_distance`; ``radius``: ``(N,)`` body radii;
+    ``clearance``: the hard minimum clearance ``c`` (m). Per segment and cylinder: ``inf``
+    strictly inside ``R + r + c``, else 0 beyond ``R + r + Delta``, else ``R + r + Delta - d``.
+    Returns ``(P, N)`` sums and ``(P, N)`` total penetration depth of ``R + r + c``.
     """
-    inner = cylinders[:, 2] + radius[:, None, None]  # (N, 1, T)
-    outer = inner + margin
-    cost = np.where(dist > outer, 0.0, np.where(dist < inner, np.inf, outer - dist))
+    body = cylinders[:, 2] + radius[:, None, None]  # (N, 1, T)
+    inner = body + clearance
+    outer = body + margin
+    cost = np.where(dist < inner, np.inf, np.where(dist > outer, 0.0, outer - dist))
     depth = np.maximum(inner - dist, 0.0)
     return cost.sum(axis=(-2, -1)), depth.sum(axis=(-2, -1))
 

@@ -72,6 +72,7 @@ def model_arrays(model: CostModel, c1: float = 0.0, c2: float = 0.0, team_sum: b
         grid, origin, cell = _f64(elevation), terrain.origin, float(terrain.cell_size)
     par = np.zeros(kn.N_PAR)
     par[kn.P_MARGIN] = model.danger_margin
+    par[kn.P_CLEAR] = model.min_clearance
     par[kn.P_SAFE] = model.safe_distance
     par[kn.P_THR_TURN] = model.turning_threshold_deg
     par[kn.P_THR_CLIMB] = model.climb_threshold_deg

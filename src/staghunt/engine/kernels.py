@@ -68,7 +68,8 @@ P_CELL = 9
 P_C1 = 10
 P_C2 = 11
 P_SUM = 12  # 1: the objective is the team sum, else the players' J
-N_PAR = 13
+P_CLEAR = 13  # hard minimum clearance c: infeasible strictly inside R + r + c
+N_PAR = 14
 
 MODE_INIT = 0  # draw uniform positions, evaluate, personal bests = positions
 MODE_STEP = 1  # PSO step, evaluate, personal bests by dominance
@@ -157,15 +158,15 @@ def _dominates(cost_a: np.ndarray, ia: int, va: float, cost_b: np.ndarray, ib: i
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _threats_exact(b, xn, yn, seg, cyl, radius, margin, acc, dep) -> None:  # noqa: ANN001
+def _threats_exact(b, xn, yn, seg, cyl, radius, margin, clear, acc, dep) -> None:  # noqa: ANN001
     """Lane ``b``: the obstacle pairs that the vectorised pass left out (fast distance within
-    DECISION_TOL of ``R + r`` or ``R + r + Delta``), with NumPy's exact arithmetic."""
+    DECISION_TOL of ``R + r + c`` or ``R + r + Delta``), with NumPy's exact arithmetic."""
     S = xn.shape[0] - 1
     for t in range(cyl.shape[0]):
         cx = cyl[t, 0]
         cy = cyl[t, 1]
-        inner = cyl[t, 2] + radius
-        outer = inner + margin
+        inner = cyl[t, 2] + radius + clear
+        outer = cyl[t, 2] + radius + margin
         for j in range(S):
             ax = xn[j, b]
             ay = yn[j, b]
@@ -185,7 +186,7 @@ def _threats_exact(b, xn, yn, seg, cyl, radius, margin, acc, dep) -> None:  # no
             d = perp if (on and not zero) else math.sqrt(d2a if zero else min(d2a, d2b))
             if abs(d - inner) <= DECISION_TOL or abs(d - outer) <= DECISION_TOL:
                 d = axis_distance(ax, ay, bx, by, cx, cy)
-                acc[b] += 0.0 if d > outer else (np.inf if d < inner else outer - d)
+                acc[b] += np.inf if d < inner else (0.0 if d > outer else outer - d)
                 depth = inner - d
                 dep[b] += depth if depth >= 0.0 else 0.0
 
@@ -205,6 +206,7 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, ac
     S = K + 1
     radius = uav[n, 8]
     margin = par[P_MARGIN]
+    clear = par[P_CLEAR]
 
     # Segments and the 3-D length (pairwise sum, as NumPy).
     for j in range(S):
@@ -235,8 +237,8 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, ac
     for t in range(cyl.shape[0]):
         cx = cyl[t, 0]
         cy = cyl[t, 1]
-        inner = cyl[t, 2] + radius
-        outer = inner + margin
+        inner = cyl[t, 2] + radius + clear
+        outer = cyl[t, 2] + radius + margin
         for j in range(S):
             for b in range(nb):
                 abx = seg[0, j, b]
@@ -252,7 +254,7 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, ac
                 perp = abs(abx * axy - aby * axx) * seg[4, j, b]
                 d = perp if (on and not zero) else math.sqrt(d2a if zero else min(d2a, d2b))
                 redo = abs(d - inner) <= DECISION_TOL or abs(d - outer) <= DECISION_TOL
-                c = 0.0 if d > outer else (np.inf if d < inner else outer - d)
+                c = np.inf if d < inner else (0.0 if d > outer else outer - d)
                 depth = inner - d
                 depth = depth if depth >= 0.0 else 0.0
                 acc[b] += 0.0 if redo else c
@@ -260,7 +262,7 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, ac
                 flag[b] += 1.0 if redo else 0.0
     for b in range(nb):
         if flag[b] != 0.0:
-            _threats_exact(b, xn, yn, seg, cyl, radius, margin, acc, acc2)
+            _threats_exact(b, xn, yn, seg, cyl, radius, margin, clear, acc, acc2)
     for b in range(nb):
         terms[n, 1, b] = acc[b]
         vio[n, 0, b] = acc2[b]

@@ -27,8 +27,8 @@ from typing import Any
 import numpy as np
 
 from staghunt.scenario.model import CostParams, Scenario, SolverSettings
-from staghunt.task import UAV, Formation, Weights, is_connected
-from staghunt.world import Bounds, Cylinder, Terrain, World
+from staghunt.task import UAV, Formation, VehicleLimits, Weights, is_connected
+from staghunt.world import Bounds, Cylinder, GeoOrigin, Terrain, World
 
 __all__ = [
     "ScenarioError",
@@ -43,8 +43,11 @@ _BUILTIN_PACKAGE = "staghunt.scenario.builtin"
 
 # Allowed keys of every table, in the order the documentation lists them.
 TOP_KEYS = (
-    "name", "description", "site", "ground", "obstacles", "team", "formation", "costs", "solver"
+    "name", "description", "site", "origin", "ground", "obstacles", "team", "formation", "costs",
+    "solver", "vehicle",
 )
+ORIGIN_KEYS = ("latitude", "longitude", "altitude")
+VEHICLE_KEYS = tuple(f.name for f in fields(VehicleLimits))
 SITE_KEYS = ("xmin", "xmax", "ymin", "ymax", "hmin", "hmax")
 GROUND_FLAT_KEYS = ("kind",)
 GROUND_DEM_KEYS = ("kind", "file", "origin", "cell_size", "sampling", "shape", "dtype", "sha256")
@@ -612,13 +615,50 @@ def _read_costs(data: Mapping[str, Any]) -> CostParams:
         _get(t, "continuous_separation", "costs", d.continuous_separation),
         "costs.continuous_separation",
     )
+    clearance = _number(_get(t, "min_clearance", "costs", d.min_clearance), "costs.min_clearance")
+    _at_least(clearance, 0.0, "costs.min_clearance")
     return CostParams(
         danger_margin=margin,
         safe_distance=safe,
         desired_height=desired_h,
         continuous_separation=cont,
+        min_clearance=clearance,
         **thresholds,
     )
+
+
+def _read_origin(data: Mapping[str, Any]) -> GeoOrigin | None:
+    raw = _get(data, "origin", "", None)
+    if raw is None:
+        return None
+    t = _table(raw, "origin")
+    _check_keys(t, "origin", ORIGIN_KEYS)
+    lat = _number(_get(t, "latitude", "origin"), "origin.latitude")
+    lon = _number(_get(t, "longitude", "origin"), "origin.longitude")
+    alt = _number(_get(t, "altitude", "origin"), "origin.altitude")
+    if not -90.0 <= lat <= 90.0:
+        raise ScenarioError(f"must lie in [-90, 90] degrees, got {_fmt(lat)}", "origin.latitude")
+    if not -180.0 <= lon <= 180.0:
+        raise ScenarioError(f"must lie in [-180, 180] degrees, got {_fmt(lon)}", "origin.longitude")
+    if not -500.0 <= alt <= 10000.0:
+        raise ScenarioError(f"must lie in [-500, 10000] m above mean sea level, got {_fmt(alt)}",
+                            "origin.altitude")
+    return GeoOrigin(latitude=lat, longitude=lon, altitude=alt)
+
+
+def _read_vehicle(data: Mapping[str, Any]) -> VehicleLimits:
+    t = _table(_get(data, "vehicle", "", {}), "vehicle")
+    _check_keys(t, "vehicle", VEHICLE_KEYS)
+    d = VehicleLimits()
+    values = {}
+    for key in VEHICLE_KEYS:
+        v = _number(_get(t, key, "vehicle", getattr(d, key)), f"vehicle.{key}")
+        values[key] = _at_least(v, 0.0, f"vehicle.{key}", strict=True)
+    if values["cruise_speed"] > values["max_speed"]:
+        raise ScenarioError(
+            f"must not exceed vehicle.max_speed ({_fmt(values['max_speed'])} m/s), got "
+            f"{_fmt(values['cruise_speed'])}", "vehicle.cruise_speed")
+    return VehicleLimits(**values)
 
 
 def _read_solver(data: Mapping[str, Any]) -> SolverSettings:
@@ -689,6 +729,8 @@ def scenario_from_dict(
         formation=formation,
         costs=costs,
         solver=solver,
+        origin=_read_origin(data),
+        vehicle=_read_vehicle(data),
     )
 
 
@@ -724,6 +766,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     c = scenario.costs
     s = scenario.solver
     f = scenario.formation
+    o = scenario.origin
     return {
         "name": scenario.name,
         "description": scenario.description,
@@ -756,6 +799,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             "climb_threshold_deg": float(c.climb_threshold_deg),
             "desired_height": None if c.desired_height is None else float(c.desired_height),
             "continuous_separation": bool(c.continuous_separation),
+            "min_clearance": float(c.min_clearance),
         },
         "solver": {
             "particles": int(s.particles),
@@ -767,4 +811,8 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             "c2": float(s.c2),
             "velocity_fraction": float(s.velocity_fraction),
         },
+        "origin": None if o is None else {
+            "latitude": float(o.latitude), "longitude": float(o.longitude), "altitude": float(o.altitude)
+        },
+        "vehicle": {k: float(getattr(scenario.vehicle, k)) for k in VEHICLE_KEYS},
     }

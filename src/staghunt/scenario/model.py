@@ -6,8 +6,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from staghunt.task import Formation, UAV
-from staghunt.world import World
+from staghunt.task import UAV, Formation, VehicleLimits
+from staghunt.world import GeoOrigin, World
 
 
 @dataclass(frozen=True)
@@ -21,6 +21,10 @@ class CostParams:
     - ``desired_height``: ``h_ref`` (m above ground); ``None`` = middle of the height band.
     - ``continuous_separation``: also require separation *between* waypoints (closest approach of
       synchronised segments) as a constraint; the paper checks waypoints only.
+    - ``min_clearance``: hard minimum clearance (m) between a UAV's body and an obstacle's
+      surface: a segment whose horizontal distance to a cylinder's axis is below
+      ``R + r + min_clearance`` is infeasible. The danger band still ends at ``R + r + Delta``.
+      ``0`` = the paper (only touching is forbidden).
     """
 
     danger_margin: float = 10.0
@@ -29,6 +33,7 @@ class CostParams:
     climb_threshold_deg: float = 0.0
     desired_height: float | None = None
     continuous_separation: bool = True
+    min_clearance: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -55,7 +60,11 @@ class SolverSettings:
 
 @dataclass(frozen=True, eq=False)
 class Scenario:
-    """A validated planning problem. Build it with :func:`staghunt.scenario.load_scenario`."""
+    """A validated planning problem. Build it with :func:`staghunt.scenario.load_scenario`.
+
+    ``origin``: the geodetic origin of the site frame (``None``: the scenario is not
+    geo-referenced; exports then need one given explicitly). ``vehicle``: the team's flight
+    limits."""
 
     name: str
     description: str
@@ -64,6 +73,8 @@ class Scenario:
     formation: Formation
     costs: CostParams
     solver: SolverSettings
+    origin: GeoOrigin | None = None
+    vehicle: VehicleLimits = VehicleLimits()
 
     @property
     def n_uavs(self) -> int:

@@ -6,12 +6,13 @@ from staghunt.task.formation import (
     formation_error_quadratic,
     is_connected,
 )
-from staghunt.task.team import UAV, WEIGHT_NAMES, Team, Weights
+from staghunt.task.team import UAV, WEIGHT_NAMES, Team, VehicleLimits, Weights
 
 __all__ = [
     "Formation",
     "Team",
     "UAV",
+    "VehicleLimits",
     "WEIGHT_NAMES",
     "Weights",
     "formation_error_edges",

@@ -37,3 +37,17 @@ class UAV:
 
 
 Team = tuple[UAV, ...]
+
+
+@dataclass(frozen=True)
+class VehicleLimits:
+    """Flight limits shared by the team's vehicles (used to time the trajectories of a plan).
+
+    ``max_speed`` (m/s) and ``max_acceleration`` (m/s^2) are hard limits that a timed
+    trajectory never exceeds; ``cruise_speed`` (m/s, at most ``max_speed``) is the speed a
+    mission is flown at where nothing forces it slower. The defaults fit small multirotors
+    (a DJI Mini/Mavic or a PX4/ArduPilot quadcopter with its default mission speeds)."""
+
+    max_speed: float = 12.0
+    max_acceleration: float = 3.0
+    cruise_speed: float = 5.0

@@ -5,10 +5,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from staghunt.world.obstacles import Cylinder, cylinder_array
-from staghunt.world.site import Bounds
+from staghunt.world.site import Bounds, GeoOrigin
 from staghunt.world.terrain import Terrain, round_half_away
 
-__all__ = ["Bounds", "Cylinder", "Terrain", "World", "cylinder_array", "round_half_away"]
+__all__ = ["Bounds", "Cylinder", "GeoOrigin", "Terrain", "World", "cylinder_array", "round_half_away"]
 
 
 @dataclass(frozen=True, eq=False)

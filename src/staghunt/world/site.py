@@ -34,3 +34,15 @@ class Bounds:
 
     def contains_xy(self, x: float, y: float) -> bool:
         return self.xmin <= x <= self.xmax and self.ymin <= y <= self.ymax
+
+
+@dataclass(frozen=True)
+class GeoOrigin:
+    """Geodetic position of the site frame's origin ``(0, 0, 0)``: WGS84 ``latitude`` and
+    ``longitude`` in degrees and ``altitude`` in metres above mean sea level (AMSL). The site
+    frame is local east-north-up at that point: ``x`` east, ``y`` north, ``z`` up, so a point
+    at height ``h`` above ground ``g(x, y)`` lies at ``altitude + g(x, y) + h`` AMSL."""
+
+    latitude: float
+    longitude: float
+    altitude: float
