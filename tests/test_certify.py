@@ -157,7 +157,7 @@ def run_cli(argv: list[str]) -> int:
 @pytest.fixture(scope="module")
 def result_file(tmp_path_factory):
     scenario = load_scenario("scenario2")
-    r = plan(scenario, "game", 4, scenario.solver.with_(particles=12, iterations=3, waypoints=6),
+    r = plan(scenario, "paper", 4, scenario.solver.with_(particles=12, iterations=3, waypoints=6),
              engine="numpy")
     path = tmp_path_factory.mktemp("certify") / "result.json"
     write_result(r, path)
@@ -169,7 +169,7 @@ def test_certify_result_file_reads_the_plan_back(result_file):
     cert, data = certify_result_file(str(path), particles=8, iterations=3, seed=1)
     assert [u.current for u in cert.uavs] == list(r.costs.total[0])
     assert cert.notes == ()  # exact round trip of the warm starts, stored costs agree
-    assert data["method"] == "game"
+    assert data["method"] == "paper"
 
 
 def test_cli_certify(result_file, tmp_path, capsys):

@@ -295,7 +295,7 @@ def test_adaptive_threads_probe_and_choose():
     assert AdaptiveThreads(2, fixed=2).next() == 2 and AdaptiveThreads(1).next() == 1
 
 
-@pytest.mark.parametrize("method", ["game", "rigid"])
+@pytest.mark.parametrize("method", ["game", "paper", "rigid"])
 def test_fast_engine_plans_feasibly_on_scenario2(method):
     scenario = load_scenario("scenario2")
     settings = scenario.solver.with_(particles=150, iterations=60)

@@ -86,7 +86,7 @@ def test_golden_result(method):
 
 
 def test_golden_comparison_notices_a_tiny_change():
-    stored = json.loads(golden_path("game").read_text(encoding="utf-8"))
+    stored = json.loads(golden_path("paper").read_text(encoding="utf-8"))
     changed = json.loads(json.dumps(stored))
     changed["waypoints"][1][2][0] *= 1 + 1e-9
     changed["J_n"][2] = "inf"

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -12,6 +14,7 @@ from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
 from staghunt.engine import Engine, get_engine
 from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
+from staghunt.scenario.model import check_settings
 from staghunt.solvers import METHODS
 from staghunt.solvers.swarm import Progress
 
@@ -41,30 +44,19 @@ def plan(
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
     settings = settings if settings is not None else scenario.solver
-    validate_settings(settings)
+    check_settings(settings)
     resolved = get_engine(engine, threads)
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     out = METHODS[method](scenario, settings, rng, progress, runner=resolved.run_swarm)
     wall = time.perf_counter() - t0
     return assemble(scenario, method, seed, settings, out.waypoints, out.history,
-                    out.objective_history, out.evaluations, wall, out.leader_path, resolved.name)
+                    out.objective_history, out.evaluations, wall, out.leader_path, resolved.name,
+                    out.details)
 
 
-def validate_settings(s: SolverSettings) -> None:
-    """Raise ``ValueError`` with one clear line for unusable solver settings."""
-    checks = [
-        (isinstance(s.particles, int) and s.particles >= 1, "particles must be an integer >= 1"),
-        (isinstance(s.iterations, int) and s.iterations >= 0, "iterations must be an integer >= 0"),
-        (isinstance(s.waypoints, int) and s.waypoints >= 1, "waypoints must be an integer >= 1"),
-        (all(np.isfinite(v) and v >= 0 for v in (s.c0, s.c1, s.c2, s.damping)),
-         "c0, c1, c2 and damping must be finite and >= 0"),
-        (np.isfinite(s.velocity_fraction) and 0 < s.velocity_fraction <= 1,
-         "velocity_fraction must lie in (0, 1]"),
-    ]
-    for ok, msg in checks:
-        if not ok:
-            raise ValueError(f"solver settings: {msg}")
+validate_settings = check_settings
+"""Alias kept for callers of staghunt 0.1."""
 
 
 def assemble(
@@ -79,6 +71,7 @@ def assemble(
     wall_time_s: float,
     leader_path: np.ndarray | None = None,
     engine: str = "numpy",
+    details: Mapping[str, Any] | None = None,
 ) -> PlanResult:
     """Evaluate, check and package a plan ``(N, K, 3)`` into an immutable :class:`PlanResult`."""
     model = CostModel.from_scenario(scenario)
@@ -114,4 +107,5 @@ def assemble(
         wall_time_s=wall_time_s,
         leader_path=leader_path,
         engine=engine,
+        details=dict(details or {}),
     )

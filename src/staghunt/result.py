@@ -2,8 +2,10 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from enum import Enum
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +40,8 @@ class PlanResult:
       game; ``C = 1``, the team's summed cost, for single-objective methods).
     - ``evaluations``: single-UAV path evaluations spent (a joint evaluation of ``N`` paths counts ``N``).
     - ``leader_path``: ``(K + 2, 3)`` absolute path of the virtual leader (``rigid`` only, else ``None``).
+    - ``details``: what the method recorded about its search (``game``: rounds, accepted
+      replies, reply budgets, convergence), plain JSON-able data.
     - ``engine``: the engine that ran the swarms (``"numpy"`` or ``"numba"``); the engines draw
       different random streams, so a plan is reproduced by the same seed *and* engine.
     """
@@ -59,6 +63,7 @@ class PlanResult:
     wall_time_s: float
     leader_path: np.ndarray | None = None
     engine: str = "numpy"
+    details: Mapping[str, Any] = field(default_factory=dict)
 
     @property
     def feasible(self) -> bool:

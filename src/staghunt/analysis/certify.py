@@ -1,4 +1,8 @@
-"""Equilibrium certificate: each UAV's Nash gap by a unilateral best-response search.
+"""Equilibrium certificates of result files, and their reports.
+
+The search itself lives in :mod:`staghunt.solvers.response` (re-exported here). From there:
+
+
 
 A team plan ``X = (X_1 .. X_N)`` is a Nash equilibrium of the game of MODEL.md section 5 when
 no UAV can lower its own cost ``J_n(X_n, X_-n)`` by changing only its own path. For every UAV
@@ -40,139 +44,33 @@ budget and seed give the same certificate.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any, Callable
 
 import numpy as np
 
-from staghunt.costs import CostModel, evaluate
-from staghunt.encoding import decode, encode, search_space
 from staghunt.engine import Engine, get_engine
 from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress
+from staghunt.solvers.response import (
+    DEFAULT_EPSILON,
+    DEFAULT_ITERATIONS,
+    DEFAULT_PARTICLES,
+    Certificate,
+    UAVGap,
+    certify_plan as _certify_plan,
+)
 
-DEFAULT_EPSILON = 0.01
-"""Default tolerance: a relative Nash gap of at most 1 % of the UAV's own cost."""
-
-DEFAULT_PARTICLES = 200
-DEFAULT_ITERATIONS = 100
-
-ROUNDTRIP_TOLERANCE = 1e-6
-"""Metres; a larger encode/decode difference of the warm start is reported in the notes."""
-
-
-@dataclass(frozen=True, eq=False)
-class UAVGap:
-    """One UAV's unilateral best-response search.
-
-    - ``current``: its ``J_n`` in the plan (``inf`` if infeasible).
-    - ``best``: the least ``J_n`` it reached by changing its own path alone (``None`` if not
-      searched, i.e. the plan is infeasible).
-    - ``gap``: ``current - best`` floored at 0 (``inf`` for an infeasible plan); ``relative``:
-      ``gap / current`` (0 if both are 0).
-    - ``deviation``: ``(K, 3)`` free waypoints ``(x, y, h)`` of the best response found, or ``None``.
-    - ``roundtrip_error``: metres between the decoded warm start and the current path.
-    - ``evaluations``: single-UAV path evaluations spent (``particles * (iterations + 1)``).
-    """
-
-    name: str
-    current: float
-    best: float | None
-    gap: float
-    relative: float
-    deviation: np.ndarray | None
-    roundtrip_error: float
-    evaluations: int
-
-
-@dataclass(frozen=True, eq=False)
-class Certificate:
-    """The Nash gaps of a plan and the verdict.
-
-    ``status``: ``"equilibrium"`` (every relative gap ``<= epsilon``), ``"deviation"`` (some
-    UAV found a better path: see :attr:`worst`) or ``"infeasible"`` (no certificate).
-    """
-
-    uavs: tuple[UAVGap, ...]
-    epsilon: float
-    feasible: bool
-    particles: int
-    iterations: int
-    seed: int
-    notes: tuple[str, ...] = ()
-
-    @property
-    def max_relative_gap(self) -> float:
-        return max((u.relative for u in self.uavs), default=0.0)
-
-    @property
-    def max_gap(self) -> float:
-        return max((u.gap for u in self.uavs), default=0.0)
-
-    @property
-    def worst(self) -> int:
-        """Index of the UAV with the largest relative gap (the first one on ties)."""
-        rel = [u.relative for u in self.uavs]
-        return int(np.argmax(rel)) if rel else -1
-
-    @property
-    def is_equilibrium(self) -> bool:
-        return self.feasible and self.max_relative_gap <= self.epsilon
-
-    @property
-    def status(self) -> str:
-        if not self.feasible:
-            return "infeasible"
-        return "equilibrium" if self.is_equilibrium else "deviation"
-
-    @property
-    def verdict(self) -> str:
-        """One plain-language sentence."""
-        budget = f"{self.particles} particles x {self.iterations} iterations per UAV, seed {self.seed}"
-        if not self.feasible:
-            bad = [u.name for u in self.uavs if not math.isfinite(u.current)]
-            who = f" ({', '.join(bad)} with infinite cost)" if bad else ""
-            return (
-                "infeasible plan: no equilibrium certificate; the plan violates a hard constraint"
-                f"{who}, so the Nash gaps are infinite"
-            )
-        if self.is_equilibrium:
-            return (
-                f"epsilon-equilibrium with epsilon = {self.epsilon:.3g} relative ({self.epsilon:.2%} "
-                f"of each UAV's own cost): no UAV found a unilateral improvement larger than that "
-                f"with {budget} (largest relative gap {self.max_relative_gap:.3%}, largest absolute "
-                f"gap {self.max_gap:.6g}); the search is heuristic, a larger budget may still find one"
-            )
-        w = self.uavs[self.worst]
-        return (
-            f"not an epsilon-equilibrium for epsilon = {self.epsilon:.3g}: {w.name} would deviate, "
-            f"lowering its J_n from {w.current:.6g} to {w.best:.6g} (gap {w.gap:.6g}, "
-            f"{w.relative:.2%}) with the others' paths fixed ({budget})"
-        )
-
-
-def _solo_problem(model: CostModel, waypoints: np.ndarray, n: int, velocity_fraction: float) -> SwarmProblem:
-    """One swarm for UAV ``n`` (``member_of = -1`` for the others, whose paths are ``fixed``);
-    the compared cost is ``J_n`` alone (``players = (n,)``)."""
-    N, K = waypoints.shape[0], waypoints.shape[1]
-    member_of = np.full(N, -1, dtype=np.intp)
-    member_of[n] = 0
-    one = slice(n, n + 1)
-    fixed = np.array(waypoints, dtype=float, copy=True)
-    fixed.setflags(write=False)
-    return SwarmProblem(
-        model=model,
-        space=search_space(model.starts[one], model.goals[one], K, velocity_fraction),
-        starts=model.starts[one],
-        lower=model.lower[None],
-        upper=model.upper[None],
-        member_of=member_of,
-        offsets=np.zeros((N, 3)),
-        objective="players",
-        players=(n,),
-        fixed=fixed,
-    )
+__all__ = [
+    "DEFAULT_EPSILON",
+    "DEFAULT_ITERATIONS",
+    "DEFAULT_PARTICLES",
+    "Certificate",
+    "UAVGap",
+    "certificate_table",
+    "certificate_to_dict",
+    "certify_plan",
+    "certify_result_file",
+    "plan_from_result_data",
+]
 
 
 def certify_plan(
@@ -188,82 +86,11 @@ def certify_plan(
     engine: "str | Engine" = "auto",
     threads: int | None = None,
 ) -> Certificate:
-    """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
-
-    ``particles``/``iterations``: budget of each UAV's search; the other swarm parameters
-    (``c0``, ``damping``, ``c1``, ``c2``, ``velocity_fraction``) come from ``settings``
-    (default: the scenario's). ``epsilon``: relative tolerance of the verdict.
-    ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
-    ``engine``/``threads``: the engine of the searches (see :func:`staghunt.engine.get_engine`);
-    the plan's costs are always evaluated with the NumPy
-    reference. Raises ``ValueError`` for unusable inputs.
-    """
-    wp = np.asarray(waypoints, dtype=float)
-    if wp.ndim != 3 or wp.shape[0] != scenario.n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
-        raise ValueError(
-            f"waypoints must have shape (N, K, 3) with N = {scenario.n_uavs} UAVs and K >= 1, "
-            f"got {wp.shape}"
-        )
-    if not np.all(np.isfinite(wp)):
-        raise ValueError("waypoints must be finite numbers")
-    if not (isinstance(particles, int) and particles >= 1):
-        raise ValueError(f"certify particles must be an integer >= 1, got {particles!r}")
-    if not (isinstance(iterations, int) and iterations >= 0):
-        raise ValueError(f"certify iterations must be an integer >= 0, got {iterations!r}")
-    if not (isinstance(epsilon, (int, float)) and math.isfinite(epsilon) and epsilon >= 0):
-        raise ValueError(f"epsilon must be a finite number >= 0, got {epsilon!r}")
-    search = get_engine(engine, threads).run_swarm
-    base = settings if settings is not None else scenario.solver
-    run_settings = base.with_(particles=particles, iterations=iterations, waypoints=wp.shape[1])
-    model = CostModel.from_scenario(scenario)
-    names = [u.name for u in scenario.team]
-    current = evaluate(model, wp[None])
-    J = current.total[0]
-    feasible = bool(current.total_violation[0] == 0 and np.all(np.isfinite(J)))
-    notes: list[str] = []
-    gaps: list[UAVGap] = []
-    for n, name in enumerate(names):
-        if not feasible:
-            gaps.append(UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0))
-            continue
-        problem = _solo_problem(model, wp, n, run_settings.velocity_fraction)
-        initial = encode(wp[n][None, None], problem.starts, problem.space)[0]  # (1, K, 3)
-        warm = decode(initial[None], problem.starts, problem.lower, problem.upper)[0, 0]
-        roundtrip = float(np.max(np.abs(warm - wp[n])))
-        if roundtrip > ROUNDTRIP_TOLERANCE:
-            notes.append(
-                f"{name}: the current path is not exactly representable in the search space "
-                f"(encode/decode moves it by up to {roundtrip:.3g} m); the gap is still measured "
-                "against the current path"
-            )
-        report: Progress | None = None
-        if progress is not None:
-            def report(it: int, total: int, best: np.ndarray, _n: int = n) -> None:
-                progress(_n, len(names), it, total)
-        rng = np.random.default_rng([int(seed), n])
-        out = search(problem, run_settings, rng, report, initial)
-        best = float(out.best_cost[0])
-        deviation = np.array(out.best_waypoints[n])
-        if out.best_violation > 0 or not math.isfinite(best):
-            best, deviation = float(J[n]), wp[n].copy()  # only when the warm start itself broke
-        gap = max(0.0, float(J[n]) - best)
-        if gap == 0.0:
-            deviation = wp[n].copy()
-        relative = gap / float(J[n]) if J[n] != 0 else (0.0 if gap == 0 else math.inf)
-        deviation.setflags(write=False)
-        gaps.append(
-            UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip,
-                   out.path_evaluations)
-        )
-    return Certificate(
-        uavs=tuple(gaps),
-        epsilon=float(epsilon),
-        feasible=feasible,
-        particles=particles,
-        iterations=iterations,
-        seed=int(seed),
-        notes=tuple(notes),
-    )
+    """:func:`staghunt.solvers.response.certify_plan` with the searches run by ``engine`` (see
+    :func:`staghunt.engine.get_engine`)."""
+    runner = get_engine(engine, threads).run_swarm
+    return _certify_plan(scenario, waypoints, particles=particles, iterations=iterations, seed=seed,
+                         epsilon=epsilon, settings=settings, progress=progress, runner=runner)
 
 
 # ------------------------------------------------------------------------------------------------

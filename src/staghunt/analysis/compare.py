@@ -44,7 +44,7 @@ from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.dominance import dominates, preference
 
 COMPARE_FORMAT = "staghunt-compare/1"
-DEFAULT_METHODS = ("game", "rigid", "independent", "weighted")
+DEFAULT_METHODS = ("game", "paper", "rigid", "independent", "weighted")
 REFERENCE_METHOD = "game"
 _SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")
 

@@ -70,6 +70,12 @@ P_C2 = 11
 P_SUM = 12  # 1: the objective is the team sum, else the players' J
 P_CLEAR = 13  # hard minimum clearance c: infeasible strictly inside R + r + c
 N_PAR = 14
+SOLO_STRIDE = 7
+"""A problem with fixed paths (a unilateral deviation: :func:`staghunt.solvers.problem.solo_problem`)
+appends, per UAV ``n``, its constant unweighted ``J_s`` terms (5) and obstacle and ground
+violations (2) to ``par`` at ``N_PAR + SOLO_STRIDE * n``. Then only the swarm-following UAVs'
+``J_s`` terms are computed, only pairs with a player are checked, the violation is the players'
+own, and ``J`` of the other UAVs is NaN (as :meth:`SwarmProblem.evaluate`)."""
 
 MODE_INIT = 0  # draw uniform positions, evaluate, personal bests = positions
 MODE_STEP = 1  # PSO step, evaluate, personal bests by dominance
@@ -86,6 +92,14 @@ def block_size(n_uavs: int, waypoints: int) -> int:
 def _fill(row: np.ndarray, nb: int, value: float) -> None:
     for b in range(nb):
         row[b] = value
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _is_player(players: np.ndarray, n: int) -> bool:
+    for c in range(players.shape[0]):
+        if players[c] == n:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -355,7 +369,7 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, ac
 
 
 @subroutine
-def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  # noqa: ANN001
+def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, players,  # noqa: ANN001
                 form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res) -> None:
     """Formation cost and separation for the whole team (:mod:`staghunt.costs.formation`), then
     ``J_s``, ``J_f``, ``J_n`` (:func:`staghunt.costs.evaluate`).
@@ -365,7 +379,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  
     along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments; ``rx``,
     ``ry``, ``rz`` ``(K+2, B)`` relative positions of a pair; ``tmp (>= S, B)``; ``acc``,
     ``acc2``, ``flag`` ``(B,)``. All pairs are computed: skipping far ones by bounding boxes
-    measured slower for formations (every pair is near somewhere).
+    measured slower for formations (every pair is near somewhere). With ``solo`` (a problem with
+    fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``.
     """
     N = px.shape[0]
     K = px.shape[1] - 2
@@ -378,6 +393,12 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  
         for k in range(K):
             _fill(E[n, k], nb, 0.0)
     for m in range(heads.shape[0]):
+        if solo:
+            used = False
+            for c in range(players.shape[0]):
+                used = used or mu[players[c], m] != 0.0
+            if not used:
+                continue
         hd = heads[m]
         tl = tails[m]
         r0 = ref_diff[m, 0]
@@ -391,7 +412,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  
                 tmp[k, b] = (d0 * d0 + d1 * d1) + d2 * d2
         for n in range(N):
             w = mu[n, m]
-            if w != 0.0:
+            if w != 0.0 and not (solo and not _is_player(players, n)):
                 for k in range(K):
                     for b in range(nb):
                         E[n, k, b] += w * tmp[k, b]
@@ -403,6 +424,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  
             _fill(seg2[n, j], nb, np.inf)
     for a in range(N):
         for c in range(a + 1, N):
+            if solo and not (_is_player(players, a) or _is_player(players, c)):
+                continue
             for j in range(K + 2):  # relative positions p_a - p_c (NumPy's ``rel``)
                 for b in range(nb):
                     rx[j, b] = px[a, j, b] - px[c, j, b]
@@ -441,6 +464,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
+        if solo and not _is_player(players, n):
+            continue
         limit = uav[n, 10]
         for k in range(K):
             for b in range(nb):
@@ -483,8 +508,8 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
              par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2) -> None:
     """Move particles ``q0 .. q0+nb`` and build their team waypoints.
 
-    ``MODE_INIT``: uniform draw in the search ranges (``initial`` ``(S, K, 3)``, if given, is
-    particle 0); ``MODE_STEP``: velocity and position step (paper eq. 10 corrected, clamp and
+    ``MODE_INIT``: uniform draw in the search ranges (``initial`` ``(W, S, K, 3)``: warm
+    particles ``0 .. W-1``, replacing their draws); ``MODE_STEP``: velocity and position step (paper eq. 10 corrected, clamp and
     mirror) in :func:`staghunt.solvers.pso.velocity_step`'s arithmetic order. Draws come from
     the counter-based stream of ``key`` indexed by ``(it, s, k, c, p)``.
     Then decode (:func:`staghunt.encoding.decode`: steps from each swarm's start, clamped to its
@@ -512,8 +537,8 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
                         bits1[b] = unit_bits(counter_hash(key, base + np.uint64(b)))
                     for b in range(nb):
                         xr[b] = lo + (u1[b] - 1.0) * (hi - lo)
-                    if initial.shape[0] > 0 and q0 == 0:
-                        xr[0] = initial[s, k, c]
+                    for b in range(min(nb, initial.shape[0] - q0)):
+                        xr[b] = initial[q0 + b, s, k, c]
                     continue
                 for b in range(nb):
                     bits1[b], bits2[b] = unit_bits_pair(counter_hash(key, base + np.uint64(b)))
@@ -596,22 +621,26 @@ def _absolute_z(nb, px, py, ph, pz, uav, grid, par) -> None:  # noqa: ANN001
 
 
 @subroutine
-def _bests(mode, q0, nb, X, PB, pcost, pviol, cost, viol, J, players, par, vio, res, tmp, acc, better) -> None:  # noqa: ANN001
+def _bests(mode, q0, nb, X, PB, pcost, pviol, cost, viol, J, players, par, solo, vio, res, tmp, acc, better) -> None:  # noqa: ANN001
     """Compared costs ``(C, P)`` (players' ``J`` or the team sum), total violation (NumPy's
-    summation order), per-UAV ``J``, and the personal bests of particles ``q0 .. q0+nb``."""
+    summation order; with ``solo`` the players' own), per-UAV ``J``, and the personal bests
+    of particles ``q0 .. q0+nb``."""
     S, K = X.shape[0], X.shape[1]
     N = vio.shape[0]
     C = cost.shape[0]
-    for n in range(N):
+    rows = C if solo else N
+    for r in range(rows):
+        n = players[r] if solo else r
         for i in range(3):
             for b in range(nb):
-                tmp[3 * n + i, b] = vio[n, i, b]
-    pairwise_lanes(tmp, 3 * N, nb, acc)
+                tmp[3 * r + i, b] = vio[n, i, b]
+    pairwise_lanes(tmp, 3 * rows, nb, acc)
     for b in range(nb):
         viol[q0 + b] = acc[b]
     for n in range(N):
+        own = not solo or _is_player(players, n)
         for b in range(nb):
-            J[n, q0 + b] = res[2, n, b]
+            J[n, q0 + b] = res[2, n, b] if own else np.nan
     if par[P_SUM] != 0.0:
         for n in range(N):
             for b in range(nb):
@@ -682,8 +711,16 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
         _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets,
                  fixed, par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2)
     _absolute_z(nb, px, py, ph, pz, uav, grid, par)
+    solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
     for n in range(uav.shape[0]):
-        _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
+        if solo and member[n] < 0:  # a fixed path: its constant terms (see SOLO_STRIDE)
+            base = N_PAR + SOLO_STRIDE * n
+            for i in range(5):
+                _fill(terms[n, i], nb, par[base + i])
+            for i in range(2):
+                _fill(vio[n, i], nb, par[base + 5 + i])
+        else:
+            _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -693,12 +730,13 @@ def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff
     """Entry 2: formation cost, separation, ``J_n`` for a block; then the compared costs and
     personal bests of particles ``q0 .. q0+nb`` (``MODE_INIT``, ``MODE_STEP``) or the twin's
     outputs (``MODE_EVALUATE``)."""
-    _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,
+    solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
+    _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, players,
                 form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res)
     if mode == MODE_EVALUATE:
         _store(q0, nb, terms, vio, res, terms_out, vio_out, res_out)
     else:
-        _bests(mode, q0, nb, X, PB, pcost, pviol, cost, viol, J, players, par, vio, res, tmp, acc, better)
+        _bests(mode, q0, nb, X, PB, pcost, pviol, cost, viol, J, players, par, solo, vio, res, tmp, acc, better)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -22,6 +22,7 @@ import subprocess
 import sys
 import threading
 import time
+from dataclasses import replace
 from typing import Callable, Iterable
 
 import numpy as np
@@ -104,7 +105,7 @@ class _Pass:
         self.viol = np.zeros(P)
         self.J = np.zeros((N, P))
         self.gbest = np.zeros((S, K, 3))
-        self.initial = np.zeros((0, K, 3)) if initial is None else initial
+        self.initial = np.zeros((0, S, K, 3)) if initial is None else initial
         if wp is None:
             self.wp = np.zeros((0, N, K, 3))
             self.terms_out, self.vio_out, self.res_out = np.zeros((0, N, 5)), np.zeros((0, N, 3)), np.zeros((0, 3, N))
@@ -284,8 +285,10 @@ def _run(
     C = problem.n_objectives
     key = np.uint64(int(rng.integers(2**63)))
     ma = model_arrays(problem.model, float(settings.c1), float(settings.c2), problem.objective == "sum")
+    if problem.fixed is not None and problem.objective == "players":
+        ma = replace(ma, par=np.concatenate([ma.par, _fixed_constants(problem)]))
     sa = swarm_arrays(problem, K)
-    start = None if initial is None else np.array(initial, dtype=float).reshape(S, K, 3)
+    start = None if initial is None else np.array(initial, dtype=float).reshape(-1, S, K, 3)[:P].copy()
     run = _Pass(ma, sa, N, K, S, C, P, initial=start)
     run.key = key
     run.inertia = float(settings.c0)
@@ -332,11 +335,19 @@ def _run(
     )
 
 
+def _fixed_constants(problem: SwarmProblem) -> np.ndarray:
+    """``(N * SOLO_STRIDE,)`` per UAV: the unweighted ``J_s`` terms and obstacle and ground
+    violations of its ``fixed`` path, computed by the kernels themselves (so a fixed UAV's
+    values are bit-identical to a full evaluation's); see :data:`kernels.SOLO_STRIDE`."""
+    c = evaluate(problem.model, np.asarray(problem.fixed)[None])
+    return np.concatenate([c.terms[0], c.violation[0][:, :2]], axis=1).ravel()
+
+
 def _decode_one(ma: ModelArrays, sa: SwarmArrays, N: int, K: int, S: int, C: int,
                 particle: np.ndarray) -> np.ndarray:
     """Team waypoints ``(N, K, 3)`` of one spherical particle ``(S, K, 3)``, decoded by the kernel
     itself (its trigonometry rounds differently from NumPy's)."""
-    one = _Pass(ma, sa, N, K, S, C, 1, initial=np.ascontiguousarray(particle))
+    one = _Pass(ma, sa, N, K, S, C, 1, initial=np.ascontiguousarray(particle[None]))
     one.ensure_scratch(1)
     one.block(0, 1, 0, ("uav_pass",))
     w = one.scratch[0]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -97,3 +98,25 @@ class Scenario:
 
     def with_solver(self, **changes: object) -> "Scenario":
         return replace(self, solver=self.solver.with_(**changes))
+
+
+def check_settings(s: SolverSettings, what: str = "solver settings") -> None:
+    """Raise ``ValueError`` with one clear line (``what: ...``) for unusable solver settings."""
+    def integer(v: object, low: int) -> bool:
+        return isinstance(v, int) and not isinstance(v, bool) and v >= low
+
+    def real(v: object) -> bool:
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    checks = [
+        (integer(s.particles, 1), "particles must be an integer >= 1"),
+        (integer(s.iterations, 0), "iterations must be an integer >= 0"),
+        (integer(s.waypoints, 1), "waypoints must be an integer >= 1"),
+        (all(real(v) and v >= 0 for v in (s.c0, s.c1, s.c2, s.damping)),
+         "c0, c1, c2 and damping must be finite numbers >= 0"),
+        (real(s.velocity_fraction) and 0 < s.velocity_fraction <= 1,
+         "velocity_fraction must be a number in (0, 1]"),
+    ]
+    for ok, msg in checks:
+        if not ok:
+            raise ValueError(f"{what}: {msg}")

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from typing import Any, Callable, Protocol
 
 import numpy as np
@@ -15,13 +16,15 @@ from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 class SolverOutput:
     """``waypoints``: ``(N, K, 3)`` ``(x, y, h)``; ``history``: ``(I + 1, N)`` per-UAV ``J_n`` of
     the best allocation; ``objective_history``: ``(I + 1, C)``; ``evaluations``: single-UAV path
-    evaluations (summed ``SwarmOutcome.path_evaluations``); ``leader_path``: virtual leader's absolute ``(K + 2, 3)`` path, if any."""
+    evaluations (summed ``SwarmOutcome.path_evaluations``); ``leader_path``: virtual leader's absolute ``(K + 2, 3)`` path, if any;
+    ``details``: what the method wants recorded about its search (plain JSON-able data)."""
 
     waypoints: np.ndarray
     history: np.ndarray
     objective_history: np.ndarray
     evaluations: int
     leader_path: np.ndarray | None = None
+    details: Mapping[str, Any] = field(default_factory=dict)
 
 
 class Method(Protocol):

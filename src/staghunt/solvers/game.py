@@ -1,45 +1,176 @@
-"""``game``: the stag-hunt game-based SPSO of the paper (Algorithm 1).
+"""``game`` (the default): the stag hunt solved to an equilibrium by best-response dynamics.
 
-One swarm per UAV; particle ``i`` of every swarm forms joint allocation ``i``; each allocation is
-scored by every player's ``J_n = J_s + beta_n J_f``; personal and global bests move only to
-Pareto-dominating allocations, which drives the team to a payoff-dominant allocation.
+Every UAV is a player minimising its own ``J_n = J_s + beta_n J_f`` given the others' paths
+(docs/model.md, the game). The paper's Algorithm 1 (``paper``) never lets a UAV best-respond, so
+it stops at allocations that are neither equilibria nor better than the rigid baseline. This
+method searches for an equilibrium directly, within the same budget as every other method,
+``B = particles * (iterations + 1) * N`` single-UAV path evaluations, all drawn from the run's
+one generator:
+
+1. **Seed** (:data:`SEED_SHARE` of ``B``): the rigid-formation plan (:mod:`staghunt.solvers.rigid`),
+   a feasible allocation with zero formation error that no UAV can improve much alone.
+2. **Best-response rounds**: the UAVs in turn re-optimise their own path with the others fixed
+   (single-UAV SPSO on ``J_n``, :func:`~staghunt.solvers.problem.solo_problem`), warm-started from
+   the current path, the UAV's earlier replies and perturbations of the current path
+   (:data:`LOCAL_SHARE` of the particles). A reply replaces the path only if the plan stays
+   feasible and ``J_n`` drops by more than :data:`ACCEPT_TOL` (relative). With the paper's
+   symmetric edge weights the game is a weighted potential game (docs/model.md, eq. (12)):
+   every accepted reply lowers ``Phi = sum_n J_s,n / beta_n + 1/2 sum_n J_f,n``, so the rounds
+   cannot cycle.
+3. **Reply budget**: it starts at :data:`REPLY_START` of the remaining budget per reply and
+   doubles whenever a round lowers no UAV's cost by more than :data:`GROW_BELOW`; a small
+   search that finds nothing is no evidence of an equilibrium.
+4. **Stop**: after a round in which no UAV gains more than ``epsilon *`` :data:`STOP_FRACTION`
+   with a reply search at least as strong as the certificate's (:data:`VERIFY_EVALUATIONS`), or
+   when the budget is spent (the remainder goes to a last round).
+
+The plan returned is the last allocation; :func:`staghunt.plan` then certifies it with an
+independent search (:mod:`staghunt.solvers.response`). The run's ``details`` say what happened:
+rounds, accepted replies, reply budgets and each round's largest relative gain.
 """
 
 from __future__ import annotations
 
-from typing import Literal
+import math
 
 import numpy as np
 
-from staghunt.costs import CostModel
+from staghunt.costs import CostModel, evaluate, to_absolute
+from staghunt.encoding import encode
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
-from staghunt.solvers.problem import team_problem
+from staghunt.solvers.problem import solo_problem
+from staghunt.solvers.rigid import rigid_problem
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
+SEED_SHARE = 0.10
+"""Share of the budget spent on the rigid seed."""
+REPLY_START = 0.01
+"""First reply budget (per UAV) as a share of the budget left after the seed."""
+REPLY_PARTICLES = 50
+"""Particles of a reply search (fewer if the run's ``particles`` is smaller)."""
+LOCAL_SHARE = 0.25
+"""Share of a reply's particles started near the UAV's current path."""
+LOCAL_SPREAD = 0.05
+"""Standard deviation of those perturbations, as a share of each spherical range."""
+ACCEPT_TOL = 1e-9
+"""A reply is accepted if it lowers ``J_n`` by more than this (relative)."""
+GROW_BELOW = 0.005
+"""Double the reply budget after a round whose largest relative gain is below this."""
+STOP_FRACTION = 0.25
+"""Converged: a verification-strength round with every gain below ``epsilon * STOP_FRACTION``."""
+EPSILON = 0.01
+"""The relative Nash gap the method aims below (the certificate's default tolerance)."""
+VERIFY_EVALUATIONS = 400 * 201
+"""A reply search at least this strong (the default certificate's) may declare convergence."""
+MIN_REPLY_ITERATIONS = 5
+POLISH_SHARE = 0.25
+"""Share of a reply's budget for the local polish of the swarm's best (:func:`polish`)."""
+POLISH_STEP = 1.0
+POLISH_MIN_STEP = 1e-3
+"""Initial and final coordinate step (m) of the polish."""
 
-def solve_team(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None,
-    runner: SwarmRunner,
-    objective: Literal["players", "sum"],
-) -> SolverOutput:
-    """One swarm per UAV moving jointly; ``objective`` ``"players"`` (the game: Pareto dominance
-    over the ``J_n``) or ``"sum"`` (centralised: ``sum_n J_n``)."""
-    model = CostModel.from_scenario(scenario)
-    problem = team_problem(model, settings.waypoints, settings.velocity_fraction, objective)
-    out = runner(problem, settings, rng, progress)
-    return SolverOutput(
-        waypoints=out.best_waypoints,
-        history=out.record_history,
-        objective_history=out.history,
-        evaluations=out.path_evaluations,
-    )
+
+class _Rows:
+    """The seed's progress reported on the whole run's scale (``total`` rows)."""
+
+    def __init__(self, progress: Progress, total: int) -> None:
+        self.progress, self.total = progress, total
+
+    def __call__(self, iteration: int, total: int, best_cost: np.ndarray) -> None:
+        self.progress(iteration, self.total, best_cost)
 
 
-@register("game", "stag-hunt game: one swarm per UAV, Pareto-dominance bests (the paper)")
+def _reply_shape(evaluations: int, particles: int) -> tuple[int, int]:
+    """``(particles, iterations)`` of a reply's swarm search spending about ``evaluations``."""
+    p = max(1, min(particles, REPLY_PARTICLES))
+    iterations = max(MIN_REPLY_ITERATIONS, evaluations // p - 1)
+    return p, iterations
+
+
+def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
+    """``(K, 3)`` ``(x, y, h)``: where UAV ``n`` would zero its own formation error (eq. 5) at
+    every waypoint with the others' paths of ``plan`` ``(N, K, 3)`` fixed: the ``mu[n]``-weighted
+    mean over its edges of the team-mate's position plus the reference offset. ``plan[n]`` if
+    ``n`` weighs no edge."""
+    incident = (model.mu[n] > 0) & ((model.heads == n) | (model.tails == n))
+    if not incident.any():
+        return plan[n].copy()
+    absolute = to_absolute(model.terrain, plan)  # (N, K, 3)
+    target = np.zeros_like(absolute[0])
+    for e in np.flatnonzero(incident):
+        w, head, tail = model.mu[n, e], model.heads[e], model.tails[e]
+        if head == n:
+            target += w * (absolute[tail] + model.ref_diff[e])
+        else:
+            target += w * (absolute[head] - model.ref_diff[e])
+    target /= model.mu[n, incident].sum()
+    out = target.copy()
+    out[:, 2] = target[:, 2] - model.terrain.height(target[:, 0], target[:, 1])
+    return np.clip(out, model.lower, model.upper)
+
+
+def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
+           step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
+    """Local pattern search on UAV ``n``'s free waypoints in the site frame, the others fixed.
+
+    The spherical encoding moves every later waypoint with each step, so a swarm refines a
+    path poorly; this moves one coordinate at a time. Each sweep evaluates the ``6 K`` paths
+    with one coordinate of one waypoint moved by ``+-step`` (clamped to the site box) and the
+    path combining every improving move; the best feasible one that lowers ``J_n`` is taken,
+    else ``step`` halves, down to ``min_step`` metres. Returns the ``(N, K, 3)`` plan (``plan``
+    itself if nothing improved) and the path evaluations spent (``<= max_evaluations``).
+    """
+    K = plan.shape[1]
+    moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
+    current = evaluate(model, plan[None])
+    if current.total_violation[0] != 0:
+        return plan, 0
+    best, J = plan, float(current.total[0, n])
+    spent = 0
+    while step >= min_step and spent + 6 * K + 1 <= max_evaluations:
+        cands = np.clip(best[n][None] + step * moves, model.lower, model.upper)
+        Jc = _own_costs(model, best, n, cands)
+        spent += len(cands)
+        gain = J - Jc  # (6K,)
+        if not gain.max() > ACCEPT_TOL * J:
+            step /= 2
+            continue
+        g = gain.reshape(2, 3 * K)
+        direction = np.where(g[0] >= g[1], 1.0, -1.0) * (np.maximum(g[0], g[1]) > 0)
+        combined = np.clip(best[n] + step * direction.reshape(K, 3), model.lower, model.upper)
+        Jcomb = _own_costs(model, best, n, combined[None])[0]
+        spent += 1
+        i = int(np.argmax(gain))
+        new = best.copy()
+        new[n], J = (combined, Jcomb) if Jcomb < Jc[i] else (cands[i], float(Jc[i]))
+        best = new
+    return best, spent
+
+
+def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray) -> np.ndarray:
+    """``(Q,)`` ``J_n`` of ``plan`` with UAV ``n``'s path replaced by each of ``paths``
+    ``(Q, K, 3)``; ``inf`` where the deviation breaks a hard constraint."""
+    team = np.repeat(plan[None], len(paths), axis=0)
+    team[:, n] = paths
+    c = evaluate(model, team)
+    return np.where(c.total_violation == 0, c.total[:, n], np.inf)
+
+
+def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], rng: np.random.Generator,
+                    particles: int) -> np.ndarray:
+    """``(W, 1, K, 3)`` spherical warm particles: ``paths`` (current first) encoded, then
+    perturbations of the current one."""
+    enc = [encode(p[None, None], start, problem_space)[0] for p in paths]  # each (1, K, 3)
+    local = int(LOCAL_SHARE * particles)
+    if local > 0:
+        lo, hi = problem_space.lower[0], problem_space.upper[0]  # (3,)
+        noise = rng.normal(0.0, LOCAL_SPREAD, size=(local, 1, enc[0].shape[1], 3)) * (hi - lo)
+        enc.extend(np.clip(enc[0][None] + noise, lo, hi))
+    return np.stack(enc)[:particles]
+
+
+@register("game", "stag-hunt game solved to an equilibrium: rigid seed, then best-response rounds (default)")
 def solve_game(
     scenario: Scenario,
     settings: SolverSettings,
@@ -48,4 +179,84 @@ def solve_game(
     *,
     runner: SwarmRunner = run_swarm,
 ) -> SolverOutput:
-    return solve_team(scenario, settings, rng, progress, runner, "players")
+    model = CostModel.from_scenario(scenario)
+    N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
+    budget = P * (I + 1) * N
+    history = np.full((I + 1, N), np.nan)
+    unit = P * N  # evaluations per row of history
+
+    # 1. Seed: the rigid formation.
+    seed_iters = max(0, int(SEED_SHARE * (I + 1)) - 1)
+    seed_settings = settings.with_(iterations=seed_iters)
+    seed = runner(rigid_problem(model, K, settings.velocity_fraction), seed_settings, rng,
+                  None if progress is None else _Rows(progress, I))
+    spent = seed.path_evaluations
+    history[: seed_iters + 1] = seed.record_history
+    plan = np.array(seed.best_waypoints)
+    J = evaluate(model, plan[None]).total[0]
+    replies: list[list[np.ndarray]] = [[plan[n].copy()] for n in range(N)]
+    row = seed_iters + 1
+
+    # 2.-4. Best-response rounds.
+    remaining = budget - spent
+    reply_evals = max(int(REPLY_START * remaining), P)
+    rounds: list[dict[str, float | int | bool]] = []
+    accepted = 0
+    converged = False
+    while not converged:
+        remaining = budget - spent
+        per_reply = min(reply_evals, remaining // N)
+        local = int(POLISH_SHARE * per_reply)
+        p_r, i_r = _reply_shape(per_reply - local, P)
+        if N * (p_r * (i_r + 1) + local) > remaining:
+            break
+        reply_settings = settings.with_(particles=p_r, iterations=i_r)
+        gains = np.zeros(N)
+        for n in range(N):
+            problem = solo_problem(model, plan, n, settings.velocity_fraction)
+            paths = [*replies[n][::-1], formation_target(model, plan, n)]
+            warm = _warm_particles(problem.space, problem.starts, paths, rng, p_r)
+            out = runner(problem, reply_settings, rng, None, warm)
+            spent += out.path_evaluations
+            candidate = plan.copy()
+            candidate[n] = out.best_waypoints[n]
+            candidate, used = polish(model, candidate, n, local)
+            spent += used
+            c = evaluate(model, candidate[None])
+            new = c.total[0]
+            if c.total_violation[0] == 0 and new[n] < J[n] * (1.0 - ACCEPT_TOL):
+                gains[n] = (J[n] - new[n]) / J[n]
+                plan, J = candidate, new
+                replies[n].append(plan[n].copy())
+                del replies[n][:-4]
+                accepted += 1
+            last = min(I + 1, spent // unit)
+            history[row:last] = J
+            row = max(row, last)
+            if progress is not None:
+                progress(min(I, max(0, last - 1)), I, J.copy())
+        strong = p_r * (i_r + 1) + local >= VERIFY_EVALUATIONS
+        rounds.append({"reply_particles": p_r, "reply_iterations": i_r,
+                       "max_relative_gain": float(gains.max()), "relative_gains": gains.tolist(),
+                       "verification": bool(strong)})
+        converged = strong and gains.max() <= EPSILON * STOP_FRACTION
+        if gains.max() < GROW_BELOW:
+            reply_evals *= 2
+    history[row:] = J
+    if progress is not None:
+        progress(I, I, J.copy())
+    details = {
+        "seed": "rigid",
+        "seed_evaluations": int(seed.path_evaluations),
+        "rounds": rounds,
+        "accepted_replies": accepted,
+        "converged": converged,
+        "unspent_evaluations": int(budget - spent),
+    }
+    return SolverOutput(
+        waypoints=plan,
+        history=history,
+        objective_history=history.copy(),
+        evaluations=int(spent),
+        details=details,
+    )

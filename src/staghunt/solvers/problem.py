@@ -72,9 +72,19 @@ class SwarmProblem:
         return total[:, list(self.players)]
 
     def evaluate(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """NumPy reference evaluation: (compared cost ``(P, C)``, violation ``(P,)``, ``J`` ``(P, N)``)."""
+        """NumPy reference evaluation: (compared cost ``(P, C)``, violation ``(P,)``, ``J`` ``(P, N)``).
+
+        With ``fixed`` paths (a unilateral deviation) the violation is the players' own
+        (obstacles, ground, separation from any team-mate) and ``J`` of the other UAVs is NaN:
+        what the fixed UAVs do among themselves does not depend on the particle."""
         c = evaluate(self.model, self.team_waypoints(X))
-        return self.objective_values(c.total), c.total_violation, c.total
+        if self.fixed is None or self.objective == "sum":
+            return self.objective_values(c.total), c.total_violation, c.total
+        own = list(self.players)
+        violation = c.violation[:, own].reshape(X.shape[0], -1).sum(axis=1)
+        J = np.full_like(c.total, np.nan)
+        J[:, own] = c.total[:, own]
+        return self.objective_values(c.total), violation, J
 
 
 def team_problem(model: CostModel, waypoints: int, velocity_fraction: float,
@@ -91,4 +101,28 @@ def team_problem(model: CostModel, waypoints: int, velocity_fraction: float,
         offsets=np.zeros((n, 3)),
         objective=objective,
         players=tuple(range(n)),
+    )
+
+
+def solo_problem(model: CostModel, waypoints: np.ndarray, n: int, velocity_fraction: float) -> SwarmProblem:
+    """UAV ``n``'s unilateral deviation from the team plan ``waypoints`` ``(N, K, 3)``: one
+    swarm for UAV ``n`` (``member_of = -1`` for the others, whose paths are ``fixed``); the
+    compared cost is ``J_n`` alone (``players = (n,)``) and the violation its own."""
+    N, K = waypoints.shape[0], waypoints.shape[1]
+    member_of = np.full(N, -1, dtype=np.intp)
+    member_of[n] = 0
+    one = slice(n, n + 1)
+    fixed = np.array(waypoints, dtype=float, copy=True)
+    fixed.setflags(write=False)
+    return SwarmProblem(
+        model=model,
+        space=search_space(model.starts[one], model.goals[one], K, velocity_fraction),
+        starts=model.starts[one],
+        lower=model.lower[None],
+        upper=model.upper[None],
+        member_of=member_of,
+        offsets=np.zeros((N, 3)),
+        objective="players",
+        players=(n,),
+        fixed=fixed,
     )

@@ -52,13 +52,15 @@ def run_swarm(
 ) -> SwarmOutcome:
     """Run ``settings.iterations`` iterations of ``settings.particles`` joint particles (NumPy engine).
 
-    ``initial``: optional ``(S, K, 3)`` spherical particle placed as particle 0 (warm start).
+    ``initial``: optional warm start, ``(S, K, 3)`` or ``(W, S, K, 3)`` spherical particles that
+    replace particles ``0 .. W-1`` of the uniform draw (at most ``P`` of them are used).
     """
     P, K = settings.particles, settings.waypoints
     space, objective = problem.space, problem.evaluate
     X = space.sample(rng, P, K)
     if initial is not None:
-        X[0] = initial
+        warm = np.asarray(initial, dtype=float).reshape(-1, *X.shape[1:])[:P]
+        X[: warm.shape[0]] = warm
     V = np.zeros_like(X)
     cost, viol, record = objective(X)
     pbest, pcost, pviol = X.copy(), cost.copy(), viol.copy()

@@ -16,7 +16,7 @@ import numpy as np
 
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
-from staghunt.solvers.game import solve_team
+from staghunt.solvers.paper import solve_team
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
