@@ -232,7 +232,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     written = [out / "compare.json", out / "compare.csv"]
     if not args.no_figure:
         try:
-            from staghunt.analysis.compare_plots import save_compare_figure
+            from staghunt.plots.compare import save_compare_figure
 
             written.append(save_compare_figure(report, out / "compare.png"))
         except KeyboardInterrupt:
