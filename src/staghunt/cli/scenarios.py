@@ -1,4 +1,4 @@
-"""``staghunt scenarios``, ``show`` and ``methods``: what there is to plan with."""
+"""``staghunt scenarios``, ``show``, ``methods`` and ``schema``: what there is to plan with."""
 
 from __future__ import annotations
 
@@ -20,6 +20,15 @@ def add_commands(sub: Any) -> None:
 
     p = sub.add_parser("methods", help="list the planning methods")
     p.set_defaults(func=cmd_methods)
+
+    p = sub.add_parser(
+        "schema",
+        help="print the JSON Schema of the scenario file format",
+        description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
+        "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
+        "TOML support at it (see docs/scenario-format.md).",
+    )
+    p.set_defaults(func=cmd_schema)
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -52,3 +61,10 @@ def cmd_methods(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from staghunt.scenario.schema import json_schema
+
+    print(json.dumps(json_schema(), indent=2, ensure_ascii=False))
+    return EXIT_OK
