@@ -1,4 +1,4 @@
 """Analysis of plans: method comparison, equilibrium certificates, golden results.
 
-No module here but :mod:`staghunt.analysis.compare_plots` imports matplotlib.
+No module here imports matplotlib: the comparison's figure is :mod:`staghunt.plots.compare`.
 """

@@ -24,20 +24,26 @@ import numpy as np
 
 from staghunt.analysis.certify import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecord
-from staghunt.cli_support import (
+from staghunt.cli.common import (
     EXIT_INTERRUPTED,
     EXIT_NEGATIVE,
     EXIT_OK,
     PROG,
     StatusLine,
+    add_budget_options,
     add_engine_options,
+    add_out_option,
+    add_quiet_option,
+    add_scenario_argument,
+    budget_settings,
+    check_out_dir,
     engine_kwargs,
     error,
     int_at_least,
+    one_line,
     os_reason,
     safe_name,
 )
-
 
 
 def _epsilon(text: str) -> float:
@@ -69,14 +75,12 @@ def add_commands(subparsers: Any) -> None:
         epilog="Budget: every method spends particles x (iterations + 1) x N single-UAV path "
         "evaluations. Exit codes: 0 done, 2 bad input, 130 interrupted (finished runs kept).",
     )
-    p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
+    add_scenario_argument(p)
     p.add_argument("--methods", metavar="LIST", default=",".join(DEFAULT_METHODS),
                    help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)})")
     p.add_argument("--seeds", metavar="SEEDS", default="1-10", help="seeds, e.g. 1-10, 1,4,7 or 1-3,8 (default: 1-10)")
-    p.add_argument("--particles", type=int_at_least(1), metavar="N", help="particles per swarm (default: the scenario's)")
-    p.add_argument("--iterations", type=int_at_least(0), metavar="N", help="swarm iterations (default: the scenario's)")
-    p.add_argument("--waypoints", type=int_at_least(1), metavar="N", help="free waypoints K per UAV (default: the scenario's)")
-    p.add_argument("--out", metavar="DIR", help="output directory (default: runs/<scenario>-compare)")
+    add_budget_options(p)
+    add_out_option(p, "runs/<scenario>-compare")
     p.add_argument("--certify-particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
                    help=f"best-response search particles per UAV (default: {DEFAULT_PARTICLES})")
     p.add_argument("--certify-iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
@@ -86,7 +90,7 @@ def add_commands(subparsers: Any) -> None:
     add_engine_options(p)
     p.add_argument("--no-certify", action="store_true", help="skip the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
-    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_quiet_option(p)
     p.set_defaults(func=cmd_compare)
 
     p = subparsers.add_parser(
@@ -111,7 +115,7 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
     p.add_argument("--out", metavar="FILE", help="also write the certificate as JSON to FILE")
     add_engine_options(p)
-    p.add_argument("--quiet", action="store_true", help="no progress on stderr")
+    add_quiet_option(p)
     p.set_defaults(func=cmd_certify)
 
 
@@ -181,33 +185,20 @@ def _pct(v: float) -> str:
 # ------------------------------------------------------------------------------------------------
 
 
-def _check_out_dir(out: Path) -> None:
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"output directory {str(out)!r} exists and is not a directory")
-    parent = out
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if parent.exists() and not parent.is_dir():
-        raise ValueError(f"output directory {str(out)!r} cannot be created: {str(parent)!r} is not a directory")
-
-
 def cmd_compare(args: argparse.Namespace) -> int:
     """``staghunt compare``: see :func:`staghunt.analysis.compare.run_compare`."""
     from staghunt.analysis.compare import CertifyOptions, format_report, parse_methods, parse_seeds, run_compare
-    from staghunt.api import validate_settings
     from staghunt.scenario import load_scenario
 
     try:
         methods = parse_methods(args.methods)
         seeds = parse_seeds(args.seeds)
         scenario = load_scenario(args.scenario)
-        settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations,
-                                         waypoints=args.waypoints)
-        validate_settings(settings)
+        settings = budget_settings(scenario, args)
         out = Path(args.out) if args.out else Path("runs") / f"{safe_name(scenario.name)}-compare"
-        _check_out_dir(out)
+        check_out_dir(out)
     except (ValueError, OSError) as exc:
-        return error(os_reason(exc) if isinstance(exc, OSError) else str(exc))
+        return error(one_line(exc))
     certify = None if args.no_certify else CertifyOptions(
         args.certify_particles, args.certify_iterations, args.epsilon)
     total = len(methods) * len(seeds)
@@ -235,13 +226,13 @@ def cmd_compare(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         listener.close()
-        return error(os_reason(exc) if isinstance(exc, OSError) else str(exc))
+        return error(one_line(exc))
     listener.close()
     print(format_report(report))
     written = [out / "compare.json", out / "compare.csv"]
     if not args.no_figure:
         try:
-            from staghunt.analysis.compare_plots import save_compare_figure
+            from staghunt.plots.compare import save_compare_figure
 
             written.append(save_compare_figure(report, out / "compare.png"))
         except KeyboardInterrupt:
@@ -295,7 +286,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         line.close()
-        return error(os_reason(exc) if isinstance(exc, OSError) else str(exc))
+        return error(one_line(exc))
     line.close()
     print(
         f"{args.result}: method {data.get('method')}, seed {data.get('seed')}, scenario "

@@ -1,9 +1,8 @@
 """The comparison figure: ``J_n`` per UAV per method (box plots, log axis) and the paths of each
 method's best seed side by side (top view).
 
-The only module of :mod:`staghunt.analysis` that imports matplotlib; it builds a
-:class:`matplotlib.figure.Figure` without ``pyplot`` (no global state). UAV colours are those of
-:mod:`staghunt.plots`.
+It builds a :class:`matplotlib.figure.Figure` without ``pyplot`` (no global state). UAV colours
+are those of the plan figures (:func:`staghunt.plots.common.uav_colour`).
 """
 
 from __future__ import annotations
@@ -20,7 +19,7 @@ from matplotlib.patches import Circle, Patch
 
 from staghunt.analysis.compare import CompareReport, RunRecord, best_seed
 from staghunt.io.atomic import atomic_file
-from staghunt.plots import uav_colour
+from staghunt.plots.common import uav_colour
 
 _METHOD_COLOURS = {
     "game": "#1b9e77",

@@ -1,84 +1,44 @@
-"""The ``staghunt`` command line: parse, call the library, report. No planning logic lives here.
+"""``staghunt plan`` and ``staghunt evaluate``: parse, call the library, report.
 
-Exit codes:
-
-- ``0``: success (for ``plan`` and ``evaluate``: the paths are feasible);
-- ``3``: ``plan`` / ``evaluate`` ran but the paths are infeasible (``result.json`` is still
-  written, with ``status`` and ``message``);
-- ``2``: bad input of any kind (scenario, options, files, output directory), reported as one line
-  ``staghunt: error: ...`` on stderr;
-- ``130``: interrupted (Ctrl-C); no partial ``result.json`` is left behind.
+Exit codes: ``0`` the paths are feasible; ``3`` they are infeasible (``plan`` still writes
+``result.json``, with ``status`` and ``message``); ``2`` bad input; ``130`` interrupted (no partial
+``result.json`` is left behind).
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import os
 import sys
 import time
 from pathlib import Path
-from typing import Any, Sequence, TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
-from staghunt.cli_analysis import add_commands
-from staghunt.cli_support import (
-    EXIT_INTERRUPTED,
+from staghunt.cli.common import (
     EXIT_NEGATIVE,
     EXIT_OK,
-    EXIT_USAGE,
     PROG,
     StatusLine,
+    add_budget_options,
     add_engine_options,
+    add_out_option,
+    add_quiet_option,
+    add_scenario_argument,
+    budget_settings,
+    check_out_dir,
     engine_kwargs,
-    error,
     int_at_least,
+    one_line,
     os_reason,
     safe_name,
 )
 
 
-
-class UsageError(Exception):
-    """Bad command-line input (reported as one line, exit code 2)."""
-
-
-class _Parser(argparse.ArgumentParser):
-    """An ``ArgumentParser`` whose errors are raised (one line), not printed with the usage."""
-
-    def error(self, message: str) -> Any:  # type: ignore[override]
-        raise UsageError(f"{message} (see '{self.prog} --help')")
-
-
-# ------------------------------------------------------------------------------------------------
-# Parser
-# ------------------------------------------------------------------------------------------------
-
-
-def build_parser() -> argparse.ArgumentParser:
-    from staghunt import __version__
+def add_commands(sub: Any) -> None:
+    """Register ``plan`` and ``evaluate`` on ``sub`` (from ``add_subparsers``)."""
     from staghunt.solvers import METHODS
-
-    parser = _Parser(
-        prog=PROG,
-        description="Cooperative multi-UAV path planning as a stag hunt game (game-based SPSO).",
-        epilog="Exit codes: 0 feasible/success, 3 infeasible plan (result still written), "
-        "2 bad input, 130 interrupted.",
-    )
-    parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-
-    p = sub.add_parser("scenarios", help="list the built-in scenarios")
-    p.set_defaults(func=cmd_scenarios)
-
-    p = sub.add_parser("show", help="print a validated scenario as JSON")
-    p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
-    p.set_defaults(func=cmd_show)
-
-    p = sub.add_parser("methods", help="list the planning methods")
-    p.set_defaults(func=cmd_methods)
 
     p = sub.add_parser(
         "plan",
@@ -89,24 +49,14 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="Exit codes: 0 feasible, 3 infeasible (result.json still written), 2 bad input, "
         "130 interrupted.",
     )
-    p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
+    add_scenario_argument(p)
     p.add_argument("--method", choices=list(METHODS), default="game", help="planning method (default: game)")
     p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default: 0)")
-    p.add_argument("--particles", type=int_at_least(1), help="particles per swarm")
-    p.add_argument("--iterations", type=int_at_least(0), help="swarm iterations")
-    p.add_argument("--waypoints", type=int_at_least(1), help="free waypoints K per UAV")
-    p.add_argument(
-        "--out",
-        metavar="DIR",
-        help="output directory (default: runs/<scenario>-<method>-s<seed>)",
-    )
+    add_budget_options(p)
+    add_out_option(p, "runs/<scenario>-<method>-s<seed>")
     add_engine_options(p)
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
-    p.add_argument(
-        "--quiet",
-        action="store_true",
-        help="no progress and no summary table; print only the status and where files went",
-    )
+    add_quiet_option(p, "no progress and no summary table; print only the status and where files went")
     p.set_defaults(func=cmd_plan)
 
     p = sub.add_parser(
@@ -117,11 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
         '{"path": [[x, y, h], ...] from start to goal}, ...]}, h above ground.',
         epilog="Exit codes: 0 feasible, 3 infeasible, 2 bad input.",
     )
-    p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
+    add_scenario_argument(p)
     p.add_argument("paths", metavar="PATHS.json", help="the paths to evaluate")
     p.set_defaults(func=cmd_evaluate)
-    add_commands(sub)
-    return parser
 
 
 # ------------------------------------------------------------------------------------------------
@@ -129,51 +77,18 @@ def build_parser() -> argparse.ArgumentParser:
 # ------------------------------------------------------------------------------------------------
 
 
-def cmd_scenarios(args: argparse.Namespace) -> int:
-    from staghunt.scenario import builtin_names, load_scenario
-
-    names = builtin_names()
-    width = max((len(n) for n in names), default=0)
-    for name in names:
-        s = load_scenario(name)
-        what = f"{s.n_uavs} UAVs, {len(s.world.cylinders)} obstacles"
-        desc = " ".join(s.description.split())
-        print(f"{name:<{width}}  {what}" + (f"  {desc}" if desc else ""))
-    return EXIT_OK
-
-
-def cmd_show(args: argparse.Namespace) -> int:
-    from staghunt.scenario import load_scenario, scenario_to_dict
-
-    scenario = load_scenario(args.scenario)
-    print(json.dumps(scenario_to_dict(scenario), indent=2, allow_nan=False, ensure_ascii=False))
-    return EXIT_OK
-
-
-def cmd_methods(args: argparse.Namespace) -> int:
-    from staghunt.solvers import DESCRIPTIONS, METHODS
-
-    width = max((len(n) for n in METHODS), default=0)
-    for name in METHODS:
-        print(f"{name:<{width}}  {DESCRIPTIONS.get(name, '')}")
-    return EXIT_OK
-
-
 def cmd_plan(args: argparse.Namespace) -> int:
-    from staghunt.api import plan, validate_settings
+    from staghunt.api import plan
     from staghunt.io.result_json import write_result
     from staghunt.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
-    settings = scenario.solver.with_(
-        particles=args.particles, iterations=args.iterations, waypoints=args.waypoints
-    )
-    validate_settings(settings)
+    settings = budget_settings(scenario, args)
     if args.out is not None:
         out_dir = Path(args.out)
     else:
         out_dir = Path("runs") / f"{safe_name(scenario.name)}-{args.method}-s{args.seed}"
-    check_out_dir(out_dir)
+    check_out_dir(out_dir, "result.json")
 
     reporter = ProgressReporter(sys.stderr, quiet=args.quiet)
     try:
@@ -223,7 +138,7 @@ def _write_figures(result: Any, out_dir: Path) -> None:
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # missing matplotlib, a plotting bug...: not the user's input
-        print(f"{PROG}: warning: figures not written: {_one_line(exc)}", file=sys.stderr)
+        print(f"{PROG}: warning: figures not written: {one_line(exc)}", file=sys.stderr)
         return
     if written:
         print(f"wrote {len(written)} figure(s): {', '.join(str(p) for p in written)}")
@@ -232,26 +147,6 @@ def _write_figures(result: Any, out_dir: Path) -> None:
 # ------------------------------------------------------------------------------------------------
 # Helpers
 # ------------------------------------------------------------------------------------------------
-
-
-def check_out_dir(out_dir: Path) -> None:
-    """Raise ``ValueError`` if ``out_dir`` cannot hold ``result.json`` (checked before planning)."""
-    label = f"output directory {str(out_dir)!r}"
-    if out_dir.exists():
-        if not out_dir.is_dir():
-            raise ValueError(f"{label} exists and is not a directory")
-        if not os.access(out_dir, os.W_OK | os.X_OK):
-            raise ValueError(f"{label} is not writable")
-        if (out_dir / "result.json").is_dir():
-            raise ValueError(f"{label} holds a directory named result.json")
-        return
-    parent = out_dir.parent
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
-    if not parent.is_dir():
-        raise ValueError(f"{label} cannot be created: {str(parent)!r} is not a directory")
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise ValueError(f"{label} cannot be created: {str(parent)!r} is not writable")
 
 
 def _g(v: float) -> str:
@@ -350,45 +245,3 @@ class ProgressReporter:
     def close(self) -> None:
         """End the bar's line (also when the run was interrupted)."""
         self.line.close(keep=True)
-
-
-def _one_line(exc: BaseException) -> str:
-    text = os_reason(exc) if isinstance(exc, OSError) else str(exc)
-    text = " ".join(text.split()) or type(exc).__name__
-    return text
-
-
-# ------------------------------------------------------------------------------------------------
-# Entry point
-# ------------------------------------------------------------------------------------------------
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
-    try:
-        parser = build_parser()
-        try:
-            args = parser.parse_args(argv)
-        except UsageError as exc:
-            return error(_one_line(exc))
-        except SystemExit as exc:  # --help, --version
-            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_USAGE)
-        try:
-            return int(args.func(args))
-        except BrokenPipeError:
-            # The reader went away (``staghunt show x | head``): stop quietly.
-            try:
-                devnull = os.open(os.devnull, os.O_WRONLY)
-                os.dup2(devnull, sys.stdout.fileno())
-            except (OSError, ValueError, AttributeError):
-                pass
-            return 1
-        except (ValueError, OSError) as exc:  # ScenarioError is a ValueError
-            return error(_one_line(exc))
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
-
-
-if __name__ == "__main__":
-    sys.exit(main())

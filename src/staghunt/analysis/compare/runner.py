@@ -1,0 +1,188 @@
+"""Running and resuming a comparison: plan and certify every (method, seed) run, each stored on
+disk as soon as it ends; a run already on disk is read back instead (after checking that it was
+made with the same scenario, settings and certificate budget)."""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+import numpy as np
+
+from staghunt.analysis.compare.formats import aggregate, csv_text
+from staghunt.analysis.compare.model import (
+    DEFAULT_METHODS,
+    CertifyOptions,
+    CompareListener,
+    CompareReport,
+    RunRecord,
+    _decode,
+    _json_normal,
+    certificate_file,
+    run_file,
+)
+from staghunt.checks import plan_metrics
+from staghunt.costs import CostModel, evaluate
+from staghunt.io.atomic import write_text_atomic
+from staghunt.scenario.model import Scenario, SolverSettings
+
+
+def record_from_files(
+    scenario: Scenario, model: CostModel, result_path: Path, cert_path: Path | None
+) -> RunRecord:
+    """Rebuild a :class:`RunRecord` from a run's ``result.json`` (and certificate file)."""
+    from staghunt.analysis.certify import plan_from_result_data
+    from staghunt.io.result_json import load_json_strict, read_result
+
+    data = read_result(result_path)
+    _, wp, _ = plan_from_result_data(data, str(result_path))
+    costs = evaluate(model, wp[None])
+    cert = None
+    if cert_path is not None and cert_path.exists():
+        cert = load_json_strict(cert_path)
+    obj = np.asarray(data.get("objective_history") or [[math.nan]], dtype=float)
+    return RunRecord(
+        method=str(data["method"]),
+        seed=int(data["seed"]),
+        status=str(data["status"]),
+        names=tuple(u.name for u in scenario.team),
+        waypoints=wp,
+        paths=np.asarray([u["path"] for u in data["uavs"]], dtype=float),
+        J=costs.total[0],
+        J_s=costs.single[0],
+        J_f=costs.formation[0],
+        violation=float(costs.total_violation[0]),
+        metrics=plan_metrics(model, wp),
+        wall_time_s=float(_decode(data.get("wall_time_s", math.nan))),
+        evaluations=int(data.get("evaluations", 0)),
+        objective_final=obj[-1],
+        certificate=cert,
+    )
+
+
+def _check_stored_run(data: dict[str, Any], path: Path, expect: dict[str, Any]) -> None:
+    """A stored run must have been made with the requested scenario, method, seed and settings."""
+    for key in ("method", "seed", "settings", "scenario"):
+        if _json_normal(data.get(key)) != expect[key]:
+            what = {"settings": "solver settings", "scenario": "scenario"}.get(key, key)
+            raise ValueError(
+                f"{path} was made with a different {what} from the one this comparison asks for; "
+                "use another --out directory (or delete that file to plan it again)"
+            )
+
+
+def _check_stored_certificate(data: Any, path: Path, opts: CertifyOptions, seed: int) -> None:
+    ok = isinstance(data, dict) and (data.get("particles"), data.get("iterations"), data.get("seed")) == (
+        opts.particles, opts.iterations, seed)
+    if not ok:
+        raise ValueError(
+            f"{path} was made with a different certificate budget from the one this comparison asks for; "
+            "use another --out directory (or delete that file to certify again)"
+        )
+
+
+# ------------------------------------------------------------------------------------------------
+# Running
+# ------------------------------------------------------------------------------------------------
+
+
+def run_compare(
+    scenario: Scenario,
+    out_dir: str | os.PathLike[str],
+    *,
+    methods: Sequence[str] = DEFAULT_METHODS,
+    seeds: Sequence[int] = tuple(range(1, 11)),
+    settings: SolverSettings | None = None,
+    certify: CertifyOptions | None = CertifyOptions(),
+    listener: CompareListener | None = None,
+    plan_options: dict[str, Any] | None = None,
+) -> CompareReport:
+    """Plan ``scenario`` with every method and seed, certify each plan, and aggregate.
+
+    ``settings``: the budget of every method (default: the scenario's). ``certify``: the
+    certificate's budget and tolerance, ``None`` to skip certificates. ``plan_options``: extra
+    keyword arguments for :func:`staghunt.plan`; its ``engine`` and ``threads``, if any, also run
+    the certificates' searches. Files go to ``out_dir`` (see
+    the module docstring); a ``KeyboardInterrupt`` leaves every finished run on disk and the
+    aggregate files consistent with them. Raises ``ValueError`` for bad input.
+    """
+    from staghunt.analysis.certify import certificate_to_dict, certify_plan
+    from staghunt.api import plan, validate_settings
+    from staghunt.io.result_json import read_result, settings_to_dict, write_json_atomic, write_result
+    from staghunt.scenario import scenario_to_dict
+    from staghunt.solvers import METHODS
+
+    methods = tuple(methods)
+    seeds = tuple(int(s) for s in seeds)
+    if not methods:
+        raise ValueError("no methods to compare")
+    if not seeds:
+        raise ValueError("no seeds to run")
+    for m in methods:
+        if m not in METHODS:
+            raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
+    if len(set(methods)) != len(methods) or len(set(seeds)) != len(seeds):
+        raise ValueError("methods and seeds must not repeat")
+    if any(s < 0 for s in seeds):
+        raise ValueError("seeds must be integers >= 0")
+    settings = settings if settings is not None else scenario.solver
+    validate_settings(settings)
+    if certify is not None:
+        if certify.particles < 1 or certify.iterations < 0:
+            raise ValueError("certificate budget: particles must be >= 1 and iterations >= 0")
+        if not (math.isfinite(certify.epsilon) and certify.epsilon >= 0):
+            raise ValueError(f"epsilon must be a finite number >= 0, got {certify.epsilon!r}")
+    listener = listener or CompareListener()
+    out = Path(out_dir)
+    runs_dir = out / "runs"
+    try:
+        runs_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create output directory {str(runs_dir)!r}: {exc.strerror or exc}") from None
+
+    model = CostModel.from_scenario(scenario)
+    expect_common = {
+        "settings": _json_normal(settings_to_dict(settings)),
+        "scenario": _json_normal(scenario_to_dict(scenario)),
+    }
+    engine_options = {k: v for k, v in (plan_options or {}).items() if k in ("engine", "threads")}
+    jobs = [(m, s) for s in seeds for m in methods]
+    # Check every stored run first, so a mismatch stops the comparison before any work.
+    for m, s in jobs:
+        rf, cf = run_file(out, m, s), certificate_file(out, m, s)
+        if rf.exists():
+            _check_stored_run(read_result(rf), rf, {**expect_common, "method": m, "seed": s})
+        if certify is not None and cf.exists():
+            from staghunt.io.result_json import load_json_strict
+
+            _check_stored_certificate(load_json_strict(cf), cf, certify, s)
+
+    records: list[RunRecord] = []
+    report = CompareReport(scenario, methods, seeds, settings, certify, ())
+    for index, (m, s) in enumerate(jobs, start=1):
+        rf, cf = run_file(out, m, s), certificate_file(out, m, s)
+        resumed = rf.exists() and (certify is None or cf.exists())
+        if not rf.exists():
+            listener.run_started(index, len(jobs), m, s)
+            result = plan(scenario, m, s, settings, listener.plan_progress, **(plan_options or {}))
+            write_result(result, rf)
+        if certify is not None and not cf.exists():
+            listener.certify_started(index, len(jobs), m, s)
+            data = read_result(rf)
+            from staghunt.analysis.certify import plan_from_result_data
+
+            _, wp, _ = plan_from_result_data(data, str(rf))
+            cert = certify_plan(scenario, wp, particles=certify.particles,
+                                iterations=certify.iterations, seed=s, epsilon=certify.epsilon,
+                                settings=settings, progress=listener.certify_progress,
+                                **engine_options)
+            write_json_atomic(certificate_to_dict(cert), cf)
+        record = record_from_files(scenario, model, rf, cf if certify is not None else None)
+        records.append(record)
+        report = aggregate(scenario, methods, seeds, settings, certify, records)
+        write_json_atomic(report.data, out / "compare.json")
+        write_text_atomic(csv_text(report), out / "compare.csv")
+        listener.run_finished(index, len(jobs), record, resumed)
+    return report

@@ -1,0 +1,198 @@
+"""What the ``staghunt`` commands share: exit codes, the parser, option types and the option blocks
+used by several commands (scenario, budget, seeds, output directory, engine), error lines, the
+terminal status line."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import os
+import shutil
+import sys
+import time
+from pathlib import Path
+from typing import Any, TextIO
+
+PROG = "staghunt"
+EXIT_OK = 0
+EXIT_USAGE = 2
+EXIT_NEGATIVE = 3
+"""The command ran but the answer is no: an infeasible plan, or a plan that is no equilibrium."""
+EXIT_INTERRUPTED = 130
+
+
+class UsageError(Exception):
+    """Bad command-line input (reported as one line, exit code 2)."""
+
+
+class Parser(argparse.ArgumentParser):
+    """An ``ArgumentParser`` whose errors are raised (one line), not printed with the usage."""
+
+    def error(self, message: str) -> Any:  # type: ignore[override]
+        raise UsageError(f"{message} (see '{self.prog} --help')")
+
+
+def int_at_least(low: int) -> Any:
+    """An argparse ``type`` accepting integers ``>= low``."""
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
+        return value
+
+    parse.__name__ = f"integer >= {low}"
+    return parse
+
+
+def add_engine_options(p: argparse.ArgumentParser) -> None:
+    """``--engine`` and ``--threads`` (shared by plan, compare and certify)."""
+    from staghunt.engine import ENGINE_NAMES
+
+    p.add_argument("--engine", choices=list(ENGINE_NAMES),
+                   default="auto", help="numba (compiled), numpy (reference) or auto: numba if "
+                   "installed (default: auto)")
+    p.add_argument("--threads", type=int_at_least(1), metavar="N",
+                   help="threads of the numba engine (default: adaptive)")
+
+
+def add_scenario_argument(p: argparse.ArgumentParser) -> None:
+    """The positional ``SCENARIO`` (plan, evaluate, show, compare)."""
+    p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
+
+
+def add_budget_options(p: argparse.ArgumentParser) -> None:
+    """``--particles``, ``--iterations``, ``--waypoints``: the swarm budget, each defaulting to the
+    scenario's ``[solver]`` setting (plan, compare)."""
+    p.add_argument("--particles", type=int_at_least(1), metavar="N",
+                   help="particles per swarm (default: the scenario's)")
+    p.add_argument("--iterations", type=int_at_least(0), metavar="N",
+                   help="swarm iterations (default: the scenario's)")
+    p.add_argument("--waypoints", type=int_at_least(1), metavar="N",
+                   help="free waypoints K per UAV (default: the scenario's)")
+
+
+def budget_settings(scenario: Any, args: argparse.Namespace) -> Any:
+    """The scenario's solver settings with the budget options applied, validated."""
+    from staghunt.api import validate_settings
+
+    settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations,
+                                     waypoints=args.waypoints)
+    validate_settings(settings)
+    return settings
+
+
+def add_out_option(p: argparse.ArgumentParser, default: str, metavar: str = "DIR") -> None:
+    """``--out`` (an output directory, or with ``metavar="FILE"`` a file)."""
+    what = "output directory" if metavar == "DIR" else "output file"
+    p.add_argument("--out", metavar=metavar, help=f"{what} (default: {default})")
+
+
+def add_quiet_option(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
+    p.add_argument("--quiet", action="store_true", help=help)
+
+
+def engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:
+    """``engine``/``threads`` keyword arguments from the parsed options."""
+    out: dict[str, Any] = {}
+    if getattr(args, "engine", None) is not None:
+        out["engine"] = args.engine
+    if getattr(args, "threads", None) is not None:
+        out["threads"] = args.threads
+    return out
+
+
+def os_reason(exc: OSError) -> str:
+    """An ``OSError`` as one short phrase naming the file."""
+    reason = exc.strerror or str(exc)
+    return f"{reason}: {exc.filename!r}" if exc.filename else reason
+
+
+def one_line(exc: BaseException) -> str:
+    """An exception as one line of text (an ``OSError`` naming its file)."""
+    text = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+    return " ".join(text.split()) or type(exc).__name__
+
+
+def error(message: str) -> int:
+    """Print ``staghunt: error: ...`` (one line) on stderr; returns :data:`EXIT_USAGE`."""
+    text = " ".join(str(message).split())
+    print(f"{PROG}: error: {text}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def safe_name(name: str) -> str:
+    """A scenario name usable as part of a directory name."""
+    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
+    return cleaned or "scenario"
+
+
+def check_out_dir(out_dir: Path, file: str | None = None) -> None:
+    """Raise ``ValueError`` if ``out_dir`` cannot be used as an output directory (checked before any
+    work): it exists and is no directory, or cannot be created. With ``file``, also when it is not
+    writable or already holds a directory of that name."""
+    label = f"output directory {str(out_dir)!r}"
+    if out_dir.exists():
+        if not out_dir.is_dir():
+            raise ValueError(f"{label} exists and is not a directory")
+        if file is None:
+            return
+        if not os.access(out_dir, os.W_OK | os.X_OK):
+            raise ValueError(f"{label} is not writable")
+        if (out_dir / file).is_dir():
+            raise ValueError(f"{label} holds a directory named {file}")
+        return
+    parent = out_dir.parent if file is not None else out_dir
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if file is None and not parent.exists():
+        return
+    if not parent.is_dir():
+        raise ValueError(f"{label} cannot be created: {str(parent)!r} is not a directory")
+    if file is not None and not os.access(parent, os.W_OK | os.X_OK):
+        raise ValueError(f"{label} cannot be created: {str(parent)!r} is not writable")
+
+
+class StatusLine:
+    """A status line redrawn in place on a terminal (at most ~10 times a second); silent when the
+    stream is not a terminal."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        try:
+            self.tty = bool(stream.isatty())
+        except (AttributeError, ValueError):
+            self.tty = False
+        self.last = -math.inf
+        self.drawn = False
+
+    def draw(self, text: str, force: bool = False) -> None:
+        if not self.tty:
+            return
+        now = time.perf_counter()
+        if not force and now - self.last < 0.1:
+            return
+        self.last = now
+        cols = shutil.get_terminal_size((80, 24)).columns
+        self.stream.write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
+        self.stream.flush()
+        self.drawn = True
+
+    def say(self, text: str) -> None:
+        """A permanent line (clears the status line first)."""
+        if self.drawn:
+            self.stream.write("\r\x1b[K")
+            self.drawn = False
+        self.stream.write(text + "\n")
+        self.stream.flush()
+
+    def close(self, keep: bool = False) -> None:
+        """Clear the status line, or with ``keep`` end it so it stays on screen."""
+        if self.drawn:
+            self.stream.write("\n" if keep else "\r\x1b[K")
+            self.stream.flush()
+            self.drawn = False

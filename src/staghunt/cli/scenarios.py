@@ -1,0 +1,70 @@
+"""``staghunt scenarios``, ``show``, ``methods`` and ``schema``: what there is to plan with."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+from staghunt.cli.common import EXIT_OK, add_scenario_argument
+
+
+def add_commands(sub: Any) -> None:
+    """Register ``scenarios``, ``show`` and ``methods`` on ``sub`` (from ``add_subparsers``)."""
+    p = sub.add_parser("scenarios", help="list the built-in scenarios")
+    p.set_defaults(func=cmd_scenarios)
+
+    p = sub.add_parser("show", help="print a validated scenario as JSON")
+    add_scenario_argument(p)
+    p.set_defaults(func=cmd_show)
+
+    p = sub.add_parser("methods", help="list the planning methods")
+    p.set_defaults(func=cmd_methods)
+
+    p = sub.add_parser(
+        "schema",
+        help="print the JSON Schema of the scenario file format",
+        description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
+        "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
+        "TOML support at it (see docs/scenario-format.md).",
+    )
+    p.set_defaults(func=cmd_schema)
+
+
+def cmd_scenarios(args: argparse.Namespace) -> int:
+    from staghunt.scenario import builtin_names, load_scenario
+
+    names = builtin_names()
+    width = max((len(n) for n in names), default=0)
+    for name in names:
+        s = load_scenario(name)
+        what = f"{s.n_uavs} UAVs, {len(s.world.cylinders)} obstacles"
+        desc = " ".join(s.description.split())
+        print(f"{name:<{width}}  {what}" + (f"  {desc}" if desc else ""))
+    return EXIT_OK
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from staghunt.scenario import load_scenario, scenario_to_dict
+
+    scenario = load_scenario(args.scenario)
+    print(json.dumps(scenario_to_dict(scenario), indent=2, allow_nan=False, ensure_ascii=False))
+    return EXIT_OK
+
+
+def cmd_methods(args: argparse.Namespace) -> int:
+    from staghunt.solvers import DESCRIPTIONS, METHODS
+
+    width = max((len(n) for n in METHODS), default=0)
+    for name in METHODS:
+        print(f"{name:<{width}}  {DESCRIPTIONS.get(name, '')}")
+    return EXIT_OK
+
+
+
+
+def cmd_schema(args: argparse.Namespace) -> int:
+    from staghunt.scenario.schema import json_schema
+
+    print(json.dumps(json_schema(), indent=2, ensure_ascii=False))
+    return EXIT_OK
