@@ -19,7 +19,7 @@ from staghunt.costs import TERM_NAMES, CostModel, evaluate
 from staghunt.scenario import builtin_names, builtin_path, load_scenario
 from staghunt.solvers import METHODS
 
-TINY = ["--particles", "20", "--iterations", "5"]
+TINY = ["--particles", "20", "--iterations", "5", "--certify-particles", "6", "--certify-iterations", "2"]
 
 
 def _strict_loads(text: str):

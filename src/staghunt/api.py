@@ -5,7 +5,8 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Mapping
-from typing import Any
+from dataclasses import replace
+from typing import Any, Callable
 
 import numpy as np
 
@@ -16,6 +17,7 @@ from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.scenario.model import check_settings
 from staghunt.solvers import METHODS
+from staghunt.solvers.response import CertifyOptions, certify_plan
 from staghunt.solvers.swarm import Progress
 
 
@@ -27,6 +29,8 @@ def plan(
     progress: Progress | None = None,
     engine: "str | Engine" = "auto",
     threads: int | None = None,
+    certify: CertifyOptions | None = None,
+    certify_progress: Callable[[int, int, int, int], None] | None = None,
 ) -> PlanResult:
     """Plan paths for the team of ``scenario`` with ``method`` (see ``staghunt.solvers.METHODS``).
 
@@ -38,6 +42,13 @@ def plan(
     (numba if installed) or an engine object (:mod:`staghunt.engine`). The engines draw
     different random streams, so their plans differ (statistically equivalent). ``threads``:
     the compiled engine's thread count; ``None`` = adaptive (never slower than one thread).
+
+    ``certify``: also certify the plan (:func:`staghunt.solvers.response.certify_plan`, its
+    searches seeded from ``seed`` and run by the same engine) and store the
+    :class:`~staghunt.solvers.response.Certificate` in the result (``None``: no certificate;
+    the ``staghunt plan`` command certifies by default). ``certify_progress(uav, n_uavs,
+    iteration, iterations)`` follows its searches. A one-time compilation of the engine is timed
+    apart from the search (``compile_time_s``).
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -45,14 +56,26 @@ def plan(
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
     settings = settings if settings is not None else scenario.solver
     check_settings(settings)
+    if certify is not None:
+        certify.check()
     resolved = get_engine(engine, threads)
+    prepare = getattr(resolved, "prepare", None)
+    compile_s = float(prepare()) if callable(prepare) else 0.0
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     out = METHODS[method](scenario, settings, rng, progress, runner=resolved.run_swarm)
     wall = time.perf_counter() - t0
-    return assemble(scenario, method, seed, settings, out.waypoints, out.history,
-                    out.objective_history, out.evaluations, wall, out.leader_path, resolved.name,
-                    out.details)
+    result = assemble(scenario, method, seed, settings, out.waypoints, out.history,
+                      out.objective_history, out.evaluations, wall, out.leader_path, resolved.name,
+                      out.details)
+    result = replace(result, compile_time_s=compile_s)
+    if certify is None:
+        return result
+    t0 = time.perf_counter()
+    cert = certify_plan(scenario, result.waypoints, particles=certify.particles,
+                        iterations=certify.iterations, seed=seed, epsilon=certify.epsilon,
+                        settings=settings, progress=certify_progress, runner=resolved.run_swarm)
+    return replace(result, certificate=cert, certificate_time_s=time.perf_counter() - t0)
 
 
 validate_settings = check_settings

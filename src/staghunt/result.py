@@ -12,6 +12,7 @@ import numpy as np
 from staghunt.checks import Metrics
 from staghunt.costs import Costs
 from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.response import Certificate
 
 
 class Status(str, Enum):
@@ -40,6 +41,9 @@ class PlanResult:
       game; ``C = 1``, the team's summed cost, for single-objective methods).
     - ``evaluations``: single-UAV path evaluations spent (a joint evaluation of ``N`` paths counts ``N``).
     - ``leader_path``: ``(K + 2, 3)`` absolute path of the virtual leader (``rigid`` only, else ``None``).
+    - ``certificate``: the equilibrium certificate (each UAV's Nash gap and the verdict), if
+      the plan was certified; ``wall_time_s`` times the search alone, ``certificate_time_s``
+      the certificate and ``compile_time_s`` a one-time compilation of the engine before it.
     - ``details``: what the method recorded about its search (``game``: rounds, accepted
       replies, reply budgets, convergence), plain JSON-able data.
     - ``engine``: the engine that ran the swarms (``"numpy"`` or ``"numba"``); the engines draw
@@ -64,6 +68,9 @@ class PlanResult:
     leader_path: np.ndarray | None = None
     engine: str = "numpy"
     details: Mapping[str, Any] = field(default_factory=dict)
+    certificate: Certificate | None = None
+    compile_time_s: float = 0.0
+    certificate_time_s: float = 0.0
 
     @property
     def feasible(self) -> bool:

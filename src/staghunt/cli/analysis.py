@@ -31,14 +31,17 @@ from staghunt.cli.common import (
     PROG,
     StatusLine,
     add_budget_options,
+    add_certify_options,
     add_engine_options,
     add_out_option,
     add_quiet_option,
     add_scenario_argument,
     budget_settings,
+    certify_options,
     check_out_dir,
     engine_kwargs,
     error,
+    epsilon_value,
     int_at_least,
     one_line,
     os_reason,
@@ -46,19 +49,6 @@ from staghunt.cli.common import (
 )
 
 
-def _epsilon(text: str) -> float:
-    """``0.01`` or ``1%``: a finite relative tolerance >= 0."""
-    t = text.strip()
-    try:
-        value = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number like 0.01 or 1%, got {text!r}") from None
-    if not math.isfinite(value) or value < 0:
-        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
-    return value
-
-
-_epsilon.__name__ = "epsilon"
 
 
 def add_commands(subparsers: Any) -> None:
@@ -81,14 +71,8 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--seeds", metavar="SEEDS", default="1-10", help="seeds, e.g. 1-10, 1,4,7 or 1-3,8 (default: 1-10)")
     add_budget_options(p)
     add_out_option(p, "runs/<scenario>-compare")
-    p.add_argument("--certify-particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
-                   help=f"best-response search particles per UAV (default: {DEFAULT_PARTICLES})")
-    p.add_argument("--certify-iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
-                   help=f"best-response search iterations per UAV (default: {DEFAULT_ITERATIONS})")
-    p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
-                   help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g})")
+    add_certify_options(p, "the equilibrium certificates")
     add_engine_options(p)
-    p.add_argument("--no-certify", action="store_true", help="skip the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
     add_quiet_option(p)
     p.set_defaults(func=cmd_compare)
@@ -110,7 +94,7 @@ def add_commands(subparsers: Any) -> None:
                    help=f"particles of each UAV's search (default: {DEFAULT_PARTICLES})")
     p.add_argument("--iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
                    help=f"iterations of each UAV's search (default: {DEFAULT_ITERATIONS})")
-    p.add_argument("--epsilon", type=_epsilon, metavar="EPS", default=DEFAULT_EPSILON,
+    p.add_argument("--epsilon", type=epsilon_value, metavar="EPS", default=DEFAULT_EPSILON,
                    help=f"relative tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
     p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
     p.add_argument("--out", metavar="FILE", help="also write the certificate as JSON to FILE")
@@ -187,7 +171,7 @@ def _pct(v: float) -> str:
 
 def cmd_compare(args: argparse.Namespace) -> int:
     """``staghunt compare``: see :func:`staghunt.analysis.compare.run_compare`."""
-    from staghunt.analysis.compare import CertifyOptions, format_report, parse_methods, parse_seeds, run_compare
+    from staghunt.analysis.compare import format_report, parse_methods, parse_seeds, run_compare
     from staghunt.scenario import load_scenario
 
     try:
@@ -199,8 +183,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         check_out_dir(out)
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
-    certify = None if args.no_certify else CertifyOptions(
-        args.certify_particles, args.certify_iterations, args.epsilon)
+    certify = certify_options(args)
     total = len(methods) * len(seeds)
     if not args.quiet:
         cert = "no certificates" if certify is None else (

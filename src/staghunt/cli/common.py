@@ -86,6 +86,44 @@ def budget_settings(scenario: Any, args: argparse.Namespace) -> Any:
     return settings
 
 
+def epsilon_value(text: str) -> float:
+    """``0.01`` or ``1%``: a finite relative tolerance >= 0."""
+    t = text.strip()
+    try:
+        value = float(t[:-1]) / 100.0 if t.endswith("%") else float(t)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number like 0.01 or 1%, got {text!r}") from None
+    if not math.isfinite(value) or value < 0:
+        raise argparse.ArgumentTypeError(f"must be a finite number >= 0, got {text!r}")
+    return value
+
+
+epsilon_value.__name__ = "epsilon"
+
+
+def add_certify_options(p: argparse.ArgumentParser, what: str) -> None:
+    """``--certify-particles``, ``--certify-iterations``, ``--epsilon``, ``--no-certify`` (plan, compare)."""
+    from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
+
+    p.add_argument("--certify-particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
+                   help=f"best-response search particles per UAV (default: {DEFAULT_PARTICLES})")
+    p.add_argument("--certify-iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
+                   help=f"best-response search iterations per UAV (default: {DEFAULT_ITERATIONS})")
+    p.add_argument("--epsilon", type=epsilon_value, metavar="EPS", default=DEFAULT_EPSILON,
+                   help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g})")
+    p.add_argument("--no-certify", action="store_true", help=f"skip {what}")
+
+
+def certify_options(args: argparse.Namespace) -> Any:
+    """The :class:`~staghunt.solvers.response.CertifyOptions` of :func:`add_certify_options`'s
+    options, or ``None`` with ``--no-certify``."""
+    from staghunt.solvers.response import CertifyOptions
+
+    if args.no_certify:
+        return None
+    return CertifyOptions(args.certify_particles, args.certify_iterations, args.epsilon)
+
+
 def add_out_option(p: argparse.ArgumentParser, default: str, metavar: str = "DIR") -> None:
     """``--out`` (an output directory, or with ``metavar="FILE"`` a file)."""
     what = "output directory" if metavar == "DIR" else "output file"

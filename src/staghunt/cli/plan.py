@@ -22,11 +22,13 @@ from staghunt.cli.common import (
     PROG,
     StatusLine,
     add_budget_options,
+    add_certify_options,
     add_engine_options,
     add_out_option,
     add_quiet_option,
     add_scenario_argument,
     budget_settings,
+    certify_options,
     check_out_dir,
     engine_kwargs,
     int_at_least,
@@ -43,8 +45,10 @@ def add_commands(sub: Any) -> None:
     p = sub.add_parser(
         "plan",
         help="plan paths for a scenario and write DIR/result.json",
-        description="Plan paths for the team of SCENARIO. Budget options default to the "
-        "scenario's [solver] settings (the built-ins carry the paper's 2000 particles, "
+        description="Plan paths for the team of SCENARIO, then certify the plan: every UAV's "
+        "Nash gap by a unilateral best-response search (the verdict is printed and stored in "
+        "result.json; 'staghunt certify' re-checks with a larger budget). Budget options default "
+        "to the scenario's [solver] settings (the built-ins carry the paper's 2000 particles, "
         "1500 iterations, K = 10).",
         epilog="Exit codes: 0 feasible, 3 infeasible (result.json still written), 2 bad input, "
         "130 interrupted.",
@@ -53,6 +57,7 @@ def add_commands(sub: Any) -> None:
     p.add_argument("--method", choices=list(METHODS), default="game", help="planning method (default: game)")
     p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default: 0)")
     add_budget_options(p)
+    add_certify_options(p, "the equilibrium certificate that ends the run")
     add_out_option(p, "runs/<scenario>-<method>-s<seed>")
     add_engine_options(p)
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
@@ -89,12 +94,19 @@ def cmd_plan(args: argparse.Namespace) -> int:
     else:
         out_dir = Path("runs") / f"{safe_name(scenario.name)}-{args.method}-s{args.seed}"
     check_out_dir(out_dir, "result.json")
+    certify = certify_options(args)
+    try:  # before the search: a plan must never be computed only to be thrown away
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create output directory {str(out_dir)!r}: {os_reason(exc)}") from None
 
     reporter = ProgressReporter(sys.stderr, quiet=args.quiet)
     try:
-        result = plan(scenario, args.method, args.seed, settings, reporter, **engine_kwargs(args))
+        result = plan(scenario, args.method, args.seed, settings, reporter, certify=certify,
+                      certify_progress=reporter.certifying, **engine_kwargs(args))
     finally:
         reporter.close()
+    path = write_result(result, out_dir / "result.json")
 
     if not args.quiet:
         print(
@@ -103,13 +115,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
             f"{result.evaluations} path evaluations in {result.wall_time_s:.2f} s"
         )
         print(summary_table(result))
-    print(f"status: {result.message}")
+        if result.certificate is not None:
+            from staghunt.analysis.certify import certificate_table
 
-    try:
-        out_dir.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ValueError(f"cannot create output directory {str(out_dir)!r}: {os_reason(exc)}") from None
-    path = write_result(result, out_dir / "result.json")
+            c = result.certificate
+            print(f"equilibrium certificate ({c.particles} particles x {c.iterations} iterations per "
+                  f"UAV, {result.certificate_time_s:.2f} s):")
+            print(certificate_table(c))
+    print(f"status: {result.message}")
+    if result.certificate is not None:
+        print(f"verdict: {result.certificate.verdict}")
     print(f"wrote {path}")
 
     if not args.no_plots:
@@ -241,6 +256,12 @@ class ProgressReporter:
             f"ETA {eta:.1f} s, best J: {best}\n"
         )
         self.stream.flush()
+
+    def certifying(self, uav: int, n_uavs: int, iteration: int, total: int) -> None:
+        """Progress of the certificate's searches (on a terminal only; the table follows)."""
+        if not self.quiet and self.line.tty:
+            self.line.draw(f"{PROG}: certifying UAV {uav + 1}/{n_uavs}, iteration {iteration}/{total}",
+                           force=iteration >= total)
 
     def close(self) -> None:
         """End the bar's line (also when the run was interrupted)."""

@@ -16,7 +16,12 @@ Encoding
 
 Layout (``N`` UAVs, ``K`` free waypoints, ``I`` iterations, ``C`` compared objectives)::
 
-    format, version, notes, method, seed, status, message, wall_time_s, evaluations,
+    format, version, notes, method, seed, engine, status, message, wall_time_s (the search),
+    compile_time_s (one-time engine compilation before it), certificate_time_s, evaluations,
+    search {what the method recorded; game: rounds, accepted_replies, converged, ...},
+    certificate (null if not certified) {status, verdict, epsilon, max_relative_gap, ...,
+        particles, iterations, seed, uavs [N x {name, J_n, best_response_J_n, gap,
+        relative_gap, evaluations (the deviation budget), ...}]},
     settings {particles, iterations, waypoints, c0, damping, c1, c2, velocity_fraction},
     scenario (staghunt.scenario.scenario_to_dict),
     metrics {collision_free_waypoints, collision_free_continuous, obstacle_free,
@@ -144,6 +149,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     """
     # Imported here: staghunt.scenario / checks pull in the whole package.
     import staghunt
+    from staghunt.analysis.certify import certificate_to_dict
     from staghunt.checks import violations
     from staghunt.costs import CostModel
     from staghunt.scenario import scenario_to_dict
@@ -206,7 +212,11 @@ def result_to_dict(result: Any) -> dict[str, Any]:
         "status": result.status.value,
         "message": result.message,
         "wall_time_s": encode_number(result.wall_time_s, "wall_time_s"),
+        "compile_time_s": encode_number(result.compile_time_s, "compile_time_s"),
+        "certificate_time_s": encode_number(result.certificate_time_s, "certificate_time_s"),
         "evaluations": int(result.evaluations),
+        "search": _plain(result.details, "search"),
+        "certificate": None if result.certificate is None else certificate_to_dict(result.certificate),
         "settings": settings_to_dict(result.settings),
         "scenario": scenario_to_dict(scenario),
         "metrics": {
@@ -224,6 +234,19 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     if result.leader_path is not None:
         out["leader_path"] = encode_array(result.leader_path, "leader_path")
     return out
+
+
+def _plain(value: Any, where: str) -> Any:
+    """Method details as strict-JSON-able data (numbers through :func:`encode_number`)."""
+    if isinstance(value, dict):
+        return {str(k): _plain(v, f"{where}.{k}") for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v, f"{where}[{i}]") for i, v in enumerate(value)]
+    if isinstance(value, (bool, str)) or value is None:
+        return value
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    return encode_number(float(value), where)
 
 
 def settings_to_dict(settings: Any) -> dict[str, Any]:
@@ -290,7 +313,8 @@ def load_json_strict(path: str | os.PathLike[str]) -> Any:
         raise ValueError(f"{p}: {exc}") from None
 
 
-_NUMERIC_TOP = ("wall_time_s", "metrics", "objective_history", "leader_path")
+_NUMERIC_TOP = ("wall_time_s", "compile_time_s", "certificate_time_s", "metrics",
+                "objective_history", "leader_path")
 _NUMERIC_UAV = ("path", "heights", "cost", "history", "metrics")
 
 

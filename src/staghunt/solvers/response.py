@@ -59,6 +59,28 @@ DEFAULT_ITERATIONS = 200
 """Default budget of each UAV's deviation search: 400 x 201 = 80,400 path evaluations, four
 times the 200 x 100 of staghunt 0.1, which reported half the gap a 1000 x 500 search finds."""
 
+
+
+@dataclass(frozen=True)
+class CertifyOptions:
+    """Budget of each UAV's deviation search (``particles`` x ``iterations``) and the relative
+    tolerance ``epsilon`` of the verdict."""
+
+    particles: int = DEFAULT_PARTICLES
+    iterations: int = DEFAULT_ITERATIONS
+    epsilon: float = DEFAULT_EPSILON
+
+    def check(self) -> None:
+        """Raise ``ValueError`` (one line) for an unusable budget or tolerance."""
+        ok = (isinstance(self.particles, int) and not isinstance(self.particles, bool) and self.particles >= 1
+              and isinstance(self.iterations, int) and not isinstance(self.iterations, bool)
+              and self.iterations >= 0)
+        if not ok:
+            raise ValueError("certificate budget: particles must be an integer >= 1 and iterations >= 0")
+        if not (isinstance(self.epsilon, (int, float)) and math.isfinite(self.epsilon) and self.epsilon >= 0):
+            raise ValueError(f"epsilon must be a finite number >= 0, got {self.epsilon!r}")
+
+
 ROUNDTRIP_TOLERANCE = 1e-6
 """Metres; a larger encode/decode difference of the warm start is reported in the notes."""
 

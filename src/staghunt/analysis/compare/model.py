@@ -15,20 +15,12 @@ import numpy as np
 
 from staghunt.checks import Metrics
 from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.response import CertifyOptions
 
 COMPARE_FORMAT = "staghunt-compare/1"
 DEFAULT_METHODS = ("game", "paper", "rigid", "independent", "weighted")
 REFERENCE_METHOD = "game"
 _SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")
-
-@dataclass(frozen=True)
-class CertifyOptions:
-    """Budget of the equilibrium certificate of every run (per UAV) and its tolerance."""
-
-    particles: int = 200
-    iterations: int = 100
-    epsilon: float = 0.01
-
 
 @dataclass(frozen=True, eq=False)
 class RunRecord:

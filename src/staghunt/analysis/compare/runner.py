@@ -130,10 +130,7 @@ def run_compare(
     settings = settings if settings is not None else scenario.solver
     validate_settings(settings)
     if certify is not None:
-        if certify.particles < 1 or certify.iterations < 0:
-            raise ValueError("certificate budget: particles must be >= 1 and iterations >= 0")
-        if not (math.isfinite(certify.epsilon) and certify.epsilon >= 0):
-            raise ValueError(f"epsilon must be a finite number >= 0, got {certify.epsilon!r}")
+        certify.check()
     listener = listener or CompareListener()
     out = Path(out_dir)
     runs_dir = out / "runs"
