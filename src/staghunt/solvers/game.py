@@ -239,7 +239,7 @@ def solve_game(
         rounds.append({"reply_particles": p_r, "reply_iterations": i_r,
                        "max_relative_gain": float(gains.max()), "relative_gains": gains.tolist(),
                        "verification": bool(strong)})
-        converged = strong and gains.max() <= EPSILON * STOP_FRACTION
+        converged = bool(strong and gains.max() <= EPSILON * STOP_FRACTION)
         if gains.max() < GROW_BELOW:
             reply_evals *= 2
     history[row:] = J
