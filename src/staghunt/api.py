@@ -10,6 +10,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from staghunt.budget import check_memory, estimate_plan
 from staghunt.checks import plan_metrics, violations
 from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
 from staghunt.engine import Engine, get_engine
@@ -46,7 +47,9 @@ def plan(
     ``certify``: also certify the plan (:func:`staghunt.solvers.response.certify_plan`, its
     searches seeded from ``seed`` and run by the same engine) and store the
     :class:`~staghunt.solvers.response.Certificate` in the result (``None``: no certificate;
-    the ``staghunt plan`` command certifies by default). ``certify_progress(uav, n_uavs,
+    the ``staghunt plan`` command certifies by default). A run whose arrays cannot fit in the
+    available memory raises :class:`staghunt.budget.MemoryBudgetError` (a ``ValueError``) before
+    anything is allocated (:func:`staghunt.budget.estimate_plan`). ``certify_progress(uav, n_uavs,
     iteration, iterations)`` follows its searches. A one-time compilation of the engine is timed
     apart from the search (``compile_time_s``).
     """
@@ -59,6 +62,8 @@ def plan(
     if certify is not None:
         certify.check()
     resolved = get_engine(engine, threads)
+    # Before anything is allocated: a run that cannot fit in memory is refused with one line.
+    check_memory(estimate_plan(scenario, settings, method, resolved, threads, certify))
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
     rng = np.random.default_rng(seed)

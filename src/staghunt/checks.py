@@ -114,3 +114,24 @@ def violations(model: CostModel, waypoints: np.ndarray, names: list[str]) -> lis
                 f"(limit d_s + 2r = {limit[n]:g} m)"
             )
     return out
+
+
+def outside_site(model: CostModel, waypoints: np.ndarray, names: list[str]) -> list[str]:
+    """Plain-language list of the free waypoints ``(N, K, 3)`` (``(x, y, h)``) that leave the
+    site box (x, y within the site, h within ``[hmin, hmax]`` above ground); empty if none.
+
+    The planner's decoding keeps every waypoint inside the box; hand-made paths may not."""
+    lower, upper = np.asarray(model.lower, dtype=float), np.asarray(model.upper, dtype=float)
+    out: list[str] = []
+    labels = ("x", "y", "h")
+    wp = np.asarray(waypoints, dtype=float)
+    with np.errstate(invalid="ignore"):
+        low, high = wp < lower, wp > upper
+    for n, k, c in zip(*np.nonzero(low | high)):
+        v = wp[n, k, c]
+        side, limit = ("below", lower[c]) if low[n, k, c] else ("above", upper[c])
+        bound = {("x", "below"): "xmin", ("x", "above"): "xmax", ("y", "below"): "ymin",
+                 ("y", "above"): "ymax", ("h", "below"): "hmin", ("h", "above"): "hmax"}[(labels[c], side)]
+        out.append(f"{names[n]} waypoint {k + 1} leaves the site box: {labels[c]} = {v:.6g} is {side} "
+                   f"site.{bound} = {limit:g}")
+    return out

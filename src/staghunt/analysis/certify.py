@@ -88,7 +88,15 @@ def certify_plan(
 ) -> Certificate:
     """:func:`staghunt.solvers.response.certify_plan` with the searches run by ``engine`` (see
     :func:`staghunt.engine.get_engine`)."""
-    runner = get_engine(engine, threads).run_swarm
+    from staghunt.budget import check_memory, estimate_certify
+
+    resolved = get_engine(engine, threads)
+    wp = np.asarray(waypoints)
+    if wp.ndim == 3 and isinstance(particles, int) and isinstance(iterations, int):
+        check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
+                                      particles, iterations, resolved, threads),
+                     shrink="fewer certificate particles or iterations")
+    runner = resolved.run_swarm
     return _certify_plan(scenario, waypoints, particles=particles, iterations=iterations, seed=seed,
                          epsilon=epsilon, settings=settings, progress=progress, runner=runner)
 
@@ -146,12 +154,16 @@ def plan_from_result_data(data: dict[str, Any], source: str = "RESULT.json") -> 
         settings = base.with_(**{k: v for k, v in raw_settings.items() if k in known})
     except TypeError as exc:
         raise ValueError(f"{source}: settings: {exc}") from None
+    from staghunt.scenario.model import check_settings
+
+    check_settings(settings, what=f"{source}: settings")  # e.g. velocity_fraction = 0: no search
     return scenario, np.stack(rows), settings
 
 
 def certify_result_file(
     path: str,
     *,
+    data: dict[str, Any] | None = None,
     particles: int = DEFAULT_PARTICLES,
     iterations: int = DEFAULT_ITERATIONS,
     seed: int = 0,
@@ -161,11 +173,25 @@ def certify_result_file(
     threads: int | None = None,
 ) -> tuple[Certificate, dict[str, Any]]:
     """Certify the plan stored in ``path`` (a ``result.json``); returns the certificate and the
-    parsed result. Notes any disagreement between the stored and the recomputed ``J_n``."""
+    parsed result. Notes any disagreement between the stored and the recomputed ``J_n``.
+
+    ``data``: the file's content already read with :func:`staghunt.io.result_json.read_result`
+    (the file is then not read again: it may be a pipe). Refuses (``ValueError``) a plan whose
+    waypoints leave the site box, and a budget that cannot fit in memory."""
+    from staghunt.budget import check_memory, estimate_certify
+    from staghunt.checks import outside_site
+    from staghunt.costs import CostModel
     from staghunt.io.result_json import read_result
 
-    data = read_result(path)
+    if data is None:
+        data = read_result(path)
     scenario, wp, settings = plan_from_result_data(data, str(path))
+    outside = outside_site(CostModel.from_scenario(scenario), wp, [u.name for u in scenario.team])
+    if outside:
+        raise ValueError(f"{path}: uavs: {outside[0]}" + (f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""))
+    check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
+                                  particles, iterations, engine, threads),
+                 shrink="a smaller --particles or --iterations")
     cert = certify_plan(scenario, wp, particles=particles, iterations=iterations, seed=seed,
                         epsilon=epsilon, settings=settings, progress=progress,
                         engine=engine, threads=threads)

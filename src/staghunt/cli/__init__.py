@@ -12,7 +12,13 @@ Exit codes:
   ``result.json`` is still written; ``certify``: the plan is no equilibrium);
 - ``2``: bad input of any kind (scenario, options, files, output directory), reported as one line
   ``staghunt: error: ...`` on stderr;
-- ``130``: interrupted (Ctrl-C); no partial ``result.json`` is left behind.
+- ``130``: interrupted (Ctrl-C); no partial ``result.json`` is left behind;
+- ``141``: stdout was closed early (``staghunt plan ... | head -1``): the files were already
+  written, the rest of the report is dropped quietly (the code of a process ended by SIGPIPE);
+- ``1``: an internal error (a bug), reported as one line; ``STAGHUNT_DEBUG=1`` shows the traceback.
+
+Whatever the input, no Python traceback and no NumPy warning reaches the terminal: input is
+validated (files read once, sizes, magnitudes, memory budgets) before any search starts.
 """
 
 from __future__ import annotations
@@ -20,10 +26,12 @@ from __future__ import annotations
 import argparse
 import os
 import sys
+import warnings
 from typing import Sequence
 
 from staghunt.cli import analysis, plan, scenarios
-from staghunt.cli.common import EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line
+from staghunt.cli.common import EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line, say
+from staghunt.inputs import clip
 from staghunt.cli.plan import ProgressReporter, summary_table
 
 __all__ = ["ProgressReporter", "build_parser", "main", "summary_table"]
@@ -46,28 +54,64 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+EXIT_BROKEN_PIPE = 128 + 13
+"""Exit code when stdout's reader went away (as if ended by SIGPIPE)."""
+
+
+def _silence_stdout() -> None:
+    """Point stdout at /dev/null so the interpreter's final flush cannot fail again (the Python
+    documentation's recipe for SIGPIPE / BrokenPipeError)."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line with ``argv`` (default ``sys.argv[1:]``); return the exit code."""
+    import numpy as np
+
     try:
-        parser = build_parser()
-        try:
-            args = parser.parse_args(argv)
-        except UsageError as exc:
-            return error(one_line(exc))
-        except SystemExit as exc:  # --help, --version
-            return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_USAGE)
-        try:
-            return int(args.func(args))
-        except BrokenPipeError:
-            # The reader went away (``staghunt show x | head``): stop quietly.
-            try:
-                devnull = os.open(os.devnull, os.O_WRONLY)
-                os.dup2(devnull, sys.stdout.fileno())
-            except (OSError, ValueError, AttributeError):
-                pass
-            return 1
-        except (ValueError, OSError) as exc:  # ScenarioError is a ValueError
-            return error(one_line(exc))
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            # Validated extremes may still reach inf in NumPy: costs are then inf (infeasible),
+            # never a warning on the terminal.
+            warnings.simplefilter("ignore", RuntimeWarning)
+            return _main(argv)
+    except BrokenPipeError:
+        _silence_stdout()
+        return EXIT_BROKEN_PIPE
     except KeyboardInterrupt:
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        say(f"{PROG}: interrupted")
         return EXIT_INTERRUPTED
+
+
+def _main(argv: Sequence[str] | None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except UsageError as exc:
+        return error(one_line(exc))
+    except SystemExit as exc:  # --help, --version
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_USAGE)
+    try:
+        code = int(args.func(args))
+        sys.stdout.flush()  # a closed pipe shows here, not in the interpreter's final flush
+        return code
+    except BrokenPipeError:
+        raise
+    except (ValueError, OSError, OverflowError) as exc:  # ScenarioError and MemoryBudgetError are ValueErrors
+        return error(one_line(exc))
+    except RecursionError:
+        return error("input nested too deeply")
+    except MemoryError:
+        return error("out of memory; use a smaller budget (fewer particles, iterations or waypoints); "
+                     "'staghunt plan --dry-run' shows what a run needs")
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # a bug: one line, never a traceback (STAGHUNT_DEBUG=1 shows it)
+        if os.environ.get("STAGHUNT_DEBUG"):
+            raise
+        say(f"{PROG}: internal error ({type(exc).__name__}): {clip(str(exc))}; "
+            "please report it (STAGHUNT_DEBUG=1 shows the traceback)")
+        return 1

@@ -39,12 +39,14 @@ from staghunt.cli.common import (
     budget_settings,
     certify_options,
     check_out_dir,
+    check_path_lengths,
     engine_kwargs,
     error,
     epsilon_value,
     int_at_least,
     one_line,
     os_reason,
+    path_argument,
     safe_name,
 )
 
@@ -97,7 +99,7 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--epsilon", type=epsilon_value, metavar="EPS", default=DEFAULT_EPSILON,
                    help=f"relative tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
     p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
-    p.add_argument("--out", metavar="FILE", help="also write the certificate as JSON to FILE")
+    p.add_argument("--out", metavar="FILE", type=path_argument, help="also write the certificate as JSON to FILE")
     add_engine_options(p)
     add_quiet_option(p)
     p.set_defaults(func=cmd_certify)
@@ -179,8 +181,14 @@ def cmd_compare(args: argparse.Namespace) -> int:
         seeds = parse_seeds(args.seeds)
         scenario = load_scenario(args.scenario)
         settings = budget_settings(scenario, args)
-        out = Path(args.out) if args.out else Path("runs") / f"{safe_name(scenario.name)}-compare"
+        out = Path(args.out) if args.out is not None else Path("runs") / f"{safe_name(scenario.name)}-compare"
         check_out_dir(out)
+        from staghunt.budget import check_memory, estimate_plan
+        from staghunt.engine import get_engine
+
+        engine = get_engine(args.engine, args.threads)
+        for m in methods:  # every run must fit before the first one starts
+            check_memory(estimate_plan(scenario, settings, m, engine, args.threads, certify_options(args)))
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
     certify = certify_options(args)
@@ -253,13 +261,12 @@ def cmd_certify(args: argparse.Namespace) -> int:
             target = Path(args.out)
             if target.is_dir():
                 raise ValueError(f"--out {str(target)!r} is a directory; give a file name")
+            check_path_lengths(target, "--out")
             if not target.parent.is_dir() and str(target.parent):
                 raise ValueError(f"--out {str(target)!r}: no such directory {str(target.parent)!r}")
-        seed = args.seed
-        if seed is None:
-            raw_seed = read_result(args.result).get("seed", 0)
-            seed = int(raw_seed) if isinstance(raw_seed, int) and raw_seed >= 0 else 0
-        cert, data = certify_result_file(args.result, particles=args.particles,
+        data = read_result(args.result)  # once: RESULT.json may be a pipe (<(cat result.json))
+        seed = args.seed if args.seed is not None else int(data.get("seed", 0))
+        cert, data = certify_result_file(args.result, data=data, particles=args.particles,
                                          iterations=args.iterations, seed=seed,
                                          epsilon=args.epsilon, progress=progress,
                                          **engine_kwargs(args))

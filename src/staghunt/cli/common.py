@@ -127,7 +127,7 @@ def certify_options(args: argparse.Namespace) -> Any:
 def add_out_option(p: argparse.ArgumentParser, default: str, metavar: str = "DIR") -> None:
     """``--out`` (an output directory, or with ``metavar="FILE"`` a file)."""
     what = "output directory" if metavar == "DIR" else "output file"
-    p.add_argument("--out", metavar=metavar, help=f"{what} (default: {default})")
+    p.add_argument("--out", metavar=metavar, type=path_argument, help=f"{what} (default: {default})")
 
 
 def add_quiet_option(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
@@ -157,23 +157,79 @@ def one_line(exc: BaseException) -> str:
 
 
 def error(message: str) -> int:
-    """Print ``staghunt: error: ...`` (one line) on stderr; returns :data:`EXIT_USAGE`."""
-    text = " ".join(str(message).split())
-    print(f"{PROG}: error: {text}", file=sys.stderr)
+    """Print ``staghunt: error: ...`` (one line, echoed input cut: :func:`staghunt.inputs.clip`)
+    on stderr; returns :data:`EXIT_USAGE`."""
+    from staghunt.inputs import clip
+
+    say(f"{PROG}: error: {clip(str(message))}")
     return EXIT_USAGE
 
 
+def say(line: str, stream: TextIO | None = None) -> None:
+    """Write one line to ``stream`` (default stderr), ignoring a closed or broken stream: a
+    message must never turn into a traceback."""
+    try:
+        out = stream if stream is not None else sys.stderr
+        out.write(line + "\n")
+        out.flush()
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+SAFE_NAME_MAX = 64
+"""Longest scenario-name part of a default output directory name."""
+
+
 def safe_name(name: str) -> str:
-    """A scenario name usable as part of a directory name."""
-    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")
+    """A scenario name usable as part of a directory name (at most :data:`SAFE_NAME_MAX` characters)."""
+    cleaned = re.sub(r"[^A-Za-z0-9._-]+", "_", name).strip("._")[:SAFE_NAME_MAX].strip("._")
     return cleaned or "scenario"
+
+
+def path_argument(text: str) -> str:
+    """An argparse ``type`` for file and directory options: refuses the empty string (which
+    would silently mean the current directory) and NUL characters."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("must not be empty")
+    if "\x00" in text:
+        raise argparse.ArgumentTypeError("must not contain a NUL character")
+    return text
+
+
+path_argument.__name__ = "path"
+
+
+def _name_max(directory: Path) -> int:
+    try:
+        return int(os.pathconf(directory, "PC_NAME_MAX"))
+    except (OSError, ValueError, AttributeError):
+        return 255
+
+
+def check_path_lengths(path: Path, label: str) -> None:
+    """Raise ``ValueError`` if a component of ``path`` is longer than the file system allows
+    (``NAME_MAX``, 255 bytes on most) or the whole path longer than ``PATH_MAX`` (4096)."""
+    anchor = Path(".")
+    for parent in [*reversed(path.absolute().parents)]:
+        if parent.is_dir():
+            anchor = parent
+    limit = _name_max(anchor)
+    for part in path.parts:
+        if len(os.fsencode(part)) > limit:
+            raise ValueError(f"{label}: the name {part[:40]!r}... is {len(os.fsencode(part))} bytes long; "
+                             f"this file system allows {limit}")
+    if len(os.fsencode(str(path.absolute()))) >= 4096:
+        raise ValueError(f"{label}: the path is longer than 4096 bytes")
 
 
 def check_out_dir(out_dir: Path, file: str | None = None) -> None:
     """Raise ``ValueError`` if ``out_dir`` cannot be used as an output directory (checked before any
     work): it exists and is no directory, or cannot be created. With ``file``, also when it is not
     writable or already holds a directory of that name."""
-    label = f"output directory {str(out_dir)!r}"
+    from staghunt.inputs import clip
+
+    label = f"output directory {clip(repr(str(out_dir)))}"
+    check_path_lengths(out_dir if file is None else out_dir / file, label)
     if out_dir.exists():
         if not out_dir.is_dir():
             raise ValueError(f"{label} exists and is not a directory")
@@ -207,6 +263,7 @@ class StatusLine:
             self.tty = False
         self.last = -math.inf
         self.drawn = False
+        self.broken = False
 
     def draw(self, text: str, force: bool = False) -> None:
         if not self.tty:
@@ -216,21 +273,30 @@ class StatusLine:
             return
         self.last = now
         cols = shutil.get_terminal_size((80, 24)).columns
-        self.stream.write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
-        self.stream.flush()
-        self.drawn = True
+        self.drawn = self._write("\r" + text[: max(cols - 1, 10)] + "\x1b[K")
 
     def say(self, text: str) -> None:
         """A permanent line (clears the status line first)."""
         if self.drawn:
-            self.stream.write("\r\x1b[K")
+            self._write("\r\x1b[K")
             self.drawn = False
-        self.stream.write(text + "\n")
-        self.stream.flush()
+        self._write(text + "\n")
 
     def close(self, keep: bool = False) -> None:
         """Clear the status line, or with ``keep`` end it so it stays on screen."""
         if self.drawn:
-            self.stream.write("\n" if keep else "\r\x1b[K")
-            self.stream.flush()
+            self._write("\n" if keep else "\r\x1b[K")
             self.drawn = False
+
+    def _write(self, text: str) -> bool:
+        """Write and flush; a broken or closed stream silences the line (progress is never
+        worth losing a run over). Returns whether it was written."""
+        if self.broken:
+            return False
+        try:
+            self.stream.write(text)
+            self.stream.flush()
+        except (OSError, ValueError):
+            self.broken, self.tty = True, False
+            return False
+        return True

@@ -35,7 +35,9 @@ from staghunt.cli.common import (
     one_line,
     os_reason,
     safe_name,
+    say,
 )
+from staghunt.inputs import clip
 
 
 def add_commands(sub: Any) -> None:
@@ -49,9 +51,11 @@ def add_commands(sub: Any) -> None:
         "Nash gap by a unilateral best-response search (the verdict is printed and stored in "
         "result.json; 'staghunt certify' re-checks with a larger budget). Budget options default "
         "to the scenario's [solver] settings (the built-ins carry the paper's 2000 particles, "
-        "1500 iterations, K = 10).",
+        "1500 iterations, K = 10). Memory: the run's arrays are estimated before anything is "
+        "allocated (see --dry-run); a run that cannot fit in the available memory is refused, "
+        "one that needs over a quarter of it is announced on stderr.",
         epilog="Exit codes: 0 feasible, 3 infeasible (result.json still written), 2 bad input, "
-        "130 interrupted.",
+        "130 interrupted, 141 stdout closed early (result.json already written).",
     )
     add_scenario_argument(p)
     p.add_argument("--method", choices=list(METHODS), default="game", help="planning method (default: game)")
@@ -61,6 +65,9 @@ def add_commands(sub: Any) -> None:
     add_out_option(p, "runs/<scenario>-<method>-s<seed>")
     add_engine_options(p)
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
+    p.add_argument("--dry-run", action="store_true",
+                   help="check the inputs and print the budget and the memory the run needs "
+                   "(estimate), without planning or writing anything")
     add_quiet_option(p, "no progress and no summary table; print only the status and where files went")
     p.set_defaults(func=cmd_plan)
 
@@ -95,6 +102,14 @@ def cmd_plan(args: argparse.Namespace) -> int:
         out_dir = Path("runs") / f"{safe_name(scenario.name)}-{args.method}-s{args.seed}"
     check_out_dir(out_dir, "result.json")
     certify = certify_options(args)
+    if args.dry_run:
+        return _dry_run(scenario, settings, args, certify, out_dir)
+    from staghunt.budget import check_memory, estimate_plan
+    from staghunt.engine import get_engine
+
+    # Every check before the search: the budget must fit in memory, the directory must exist.
+    check_memory(estimate_plan(scenario, settings, args.method, get_engine(args.engine, args.threads),
+                               args.threads, certify))
     try:  # before the search: a plan must never be computed only to be thrown away
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -106,13 +121,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
                       certify_progress=reporter.certifying, **engine_kwargs(args))
     finally:
         reporter.close()
+    # Files first, terminal second: a closed stdout (| head) cannot lose the plan or its figures.
     path = write_result(result, out_dir / "result.json")
+    figures = [] if args.no_plots else _write_figures(result, out_dir)
 
     if not args.quiet:
         print(
             f"{scenario.name} / {result.method} / seed {result.seed}: {settings.particles} particles, "
             f"{settings.iterations} iterations, K = {settings.waypoints}; "
             f"{result.evaluations} path evaluations in {result.wall_time_s:.2f} s"
+            + (f" (+ {result.compile_time_s:.2f} s one-time compilation)" if result.compile_time_s >= 0.05 else "")
         )
         print(summary_table(result))
         if result.certificate is not None:
@@ -126,10 +144,31 @@ def cmd_plan(args: argparse.Namespace) -> int:
     if result.certificate is not None:
         print(f"verdict: {result.certificate.verdict}")
     print(f"wrote {path}")
-
-    if not args.no_plots:
-        _write_figures(result, out_dir)
+    if figures:
+        print(f"wrote {len(figures)} figure(s): {', '.join(str(p) for p in figures)}")
     return EXIT_OK if result.feasible else EXIT_NEGATIVE
+
+
+def _dry_run(scenario: Any, settings: Any, args: argparse.Namespace, certify: Any, out_dir: Path) -> int:
+    """``plan --dry-run``: the budget and the memory estimate; nothing planned, nothing written."""
+    from staghunt.budget import available_memory, estimate_plan, human
+    from staghunt.engine import get_engine
+
+    engine = get_engine(args.engine, args.threads)
+    est = estimate_plan(scenario, settings, args.method, engine, args.threads, certify)
+    N = scenario.n_uavs
+    evals = settings.particles * (settings.iterations + 1) * N
+    print(f"{scenario.name} / {args.method} / seed {args.seed}, engine {engine.name}: "
+          f"{settings.particles} particles x {settings.iterations} iterations, K = {settings.waypoints}, "
+          f"{N} UAVs: {evals} path evaluations")
+    if certify is not None:
+        print(f"certificate: {certify.particles} particles x {certify.iterations} iterations per UAV "
+              f"({certify.particles * (certify.iterations + 1) * N} path evaluations)")
+    avail, source = available_memory()
+    have = "unknown" if avail is None else f"{human(avail)} available ({source}), {est.total / avail:.1%} of it"
+    print(f"memory: {est.describe()}; {have}")
+    print(f"output: {out_dir / 'result.json'} (not written: dry run)")
+    return EXIT_OK
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
@@ -144,19 +183,17 @@ def cmd_evaluate(args: argparse.Namespace) -> int:
     return EXIT_OK if out["status"] == "feasible" else EXIT_NEGATIVE
 
 
-def _write_figures(result: Any, out_dir: Path) -> None:
+def _write_figures(result: Any, out_dir: Path) -> list[Path]:
     """Figures are a by-product: a failure is a warning, the plan and result.json stand."""
     try:
         from staghunt.plots import save_figures
 
-        written = save_figures(result, out_dir)
+        return list(save_figures(result, out_dir) or [])
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # missing matplotlib, a plotting bug...: not the user's input
-        print(f"{PROG}: warning: figures not written: {one_line(exc)}", file=sys.stderr)
-        return
-    if written:
-        print(f"wrote {len(written)} figure(s): {', '.join(str(p) for p in written)}")
+        say(f"{PROG}: warning: figures not written: {clip(one_line(exc))}")
+        return []
 
 
 # ------------------------------------------------------------------------------------------------
@@ -251,11 +288,10 @@ class ProgressReporter:
         step = max(1, math.ceil(total / 10))
         if iteration % step and iteration != total:
             return
-        self.stream.write(
+        self.line.say(
             f"{PROG}: iteration {iteration}/{total} ({frac:.0%}), elapsed {elapsed:.1f} s, "
-            f"ETA {eta:.1f} s, best J: {best}\n"
+            f"ETA {eta:.1f} s, best J: {best}"
         )
-        self.stream.flush()
 
     def certifying(self, uav: int, n_uavs: int, iteration: int, total: int) -> None:
         """Progress of the certificate's searches (on a terminal only; the table follows)."""

@@ -12,7 +12,13 @@ Format (strict JSON; ``h`` is the height above ground, metres)::
   given, must be that UAV's name.
 - Each entry gives exactly one of ``waypoints`` (the ``K`` free waypoints) or ``path`` (``K + 2``
   points whose first and last must equal the UAV's start and goal within ``1e-6`` m).
-- Every UAV must have the same ``K >= 1``; all numbers must be finite.
+- Every UAV must have the same ``K >= 1``; all numbers must be finite and of magnitude at most
+  :data:`staghunt.inputs.MAX_MAGNITUDE`.
+
+A plan's own ``result.json`` (format ``staghunt-result/1``) is accepted as well: its
+``uavs[n].path`` x, y and ``uavs[n].heights`` (without start and goal) are the waypoints.
+
+A waypoint outside the site box makes the paths infeasible (the violation names it).
 
 :func:`read_paths` raises ``ValueError`` with one line naming the offending entry.
 :func:`evaluate_paths` costs and checks the paths with the same code as the planner.
@@ -27,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from staghunt.checks import violations
+from staghunt.checks import outside_site, violations
 from staghunt.costs import CostModel, evaluate
 from staghunt.io.result_json import (
     INFINITY_NOTE,
@@ -36,6 +42,7 @@ from staghunt.io.result_json import (
     terms_dict,
     weighted_terms,
 )
+from staghunt.inputs import MAX_MAGNITUDE, show
 from staghunt.scenario.model import Scenario
 
 TOP_KEYS = ("uavs",)
@@ -50,23 +57,32 @@ def _points(value: Any, where: str) -> np.ndarray:
     out = np.empty((len(value), 3))
     for i, p in enumerate(value):
         if not isinstance(p, list) or len(p) != 3:
-            raise ValueError(f"{where}[{i}]: expected a point [x, y, h] of 3 numbers, got {p!r}")
+            raise ValueError(f"{where}[{i}]: expected a point [x, y, h] of 3 numbers, got {show(p)}")
         for j, v in enumerate(p):
             if isinstance(v, bool) or not isinstance(v, numbers.Real):
-                raise ValueError(f"{where}[{i}][{j}]: expected a number, got {v!r}")
+                raise ValueError(f"{where}[{i}][{j}]: expected a number, got {show(v)}")
+            if isinstance(v, int) and abs(v) > MAX_MAGNITUDE:
+                raise ValueError(f"{where}[{i}][{j}]: an integer beyond the supported magnitude "
+                                 f"{MAX_MAGNITUDE:.0e}")
             if not math.isfinite(float(v)):
                 raise ValueError(f"{where}[{i}][{j}]: must be a finite number, got {v!r}")
+            if abs(float(v)) > MAX_MAGNITUDE:
+                raise ValueError(f"{where}[{i}][{j}]: {float(v):.3g} is beyond the supported "
+                                 f"magnitude {MAX_MAGNITUDE:.0e} (far outside any site)")
             out[i, j] = float(v)
     return out
 
 
 def paths_from_data(data: Any, scenario: Scenario, source: str = "PATHS.json") -> np.ndarray:
     """Validate parsed PATHS data against ``scenario``; return free waypoints ``(N, K, 3)`` ``(x, y, h)``."""
+    if isinstance(data, dict) and "format" in data:
+        return paths_from_result(data, scenario, source)
     if not isinstance(data, dict):
         raise ValueError(f"{source}: expected a JSON object {{\"uavs\": [...]}}, got {type(data).__name__}")
     for key in data:
         if key not in TOP_KEYS:
-            raise ValueError(f"{source}: unknown key {key!r}; allowed keys: {', '.join(TOP_KEYS)}")
+            raise ValueError(f"{source}: unknown key {show(key)}; allowed keys: {', '.join(TOP_KEYS)} "
+                             "(or give a result.json written by 'staghunt plan')")
     if "uavs" not in data:
         raise ValueError(f"{source}: required key 'uavs' is missing")
     entries = data["uavs"]
@@ -86,11 +102,11 @@ def paths_from_data(data: Any, scenario: Scenario, source: str = "PATHS.json") -
             raise ValueError(f"{where}: expected an object, got {type(entry).__name__}")
         for key in entry:
             if key not in UAV_KEYS:
-                raise ValueError(f"{where}: unknown key {key!r}; allowed keys: {', '.join(UAV_KEYS)}")
+                raise ValueError(f"{where}: unknown key {show(key)}; allowed keys: {', '.join(UAV_KEYS)}")
         name = entry.get("name")
         if name is not None and name != uav.name:
             raise ValueError(
-                f"{where}.name: {name!r} is not UAV {n + 1} of the scenario ({uav.name!r}); "
+                f"{where}.name: {show(name)} is not UAV {n + 1} of the scenario ({uav.name!r}); "
                 f"list the UAVs in the scenario's order: {', '.join(u.name for u in team)}"
             )
         has_wp, has_path = "waypoints" in entry, "path" in entry
@@ -123,6 +139,23 @@ def paths_from_data(data: Any, scenario: Scenario, source: str = "PATHS.json") -
     return np.stack(result) if result else np.zeros((0, 0, 3))
 
 
+def paths_from_result(data: dict[str, Any], scenario: Scenario, source: str = "result.json") -> np.ndarray:
+    """The free waypoints ``(N, K, 3)`` ``(x, y, h)`` of a plan's ``result.json`` data (checked
+    with :func:`staghunt.io.result_json.check_result_data`), converted to PATHS form (``path``
+    x, y with ``heights``) and validated against ``scenario`` like any PATHS.json."""
+    from staghunt.io.result_json import check_result_data
+
+    check_result_data(data, source)
+    entries = []
+    for u in data["uavs"]:
+        pts = [[p[0], p[1], h] for p, h in zip(u["path"], u["heights"])]
+        entry: dict[str, Any] = {"path": pts}
+        if isinstance(u.get("name"), str):
+            entry["name"] = u["name"]
+        entries.append(entry)
+    return paths_from_data({"uavs": entries}, scenario, source)
+
+
 def read_paths(path: str | os.PathLike[str], scenario: Scenario) -> np.ndarray:
     """Read and validate a ``PATHS.json`` for ``scenario``; free waypoints ``(N, K, 3)`` ``(x, y, h)``."""
     return paths_from_data(load_json_strict(path), scenario, source=os.fspath(path))
@@ -144,8 +177,9 @@ def evaluate_paths(scenario: Scenario, waypoints: np.ndarray) -> dict[str, Any]:
         raise ValueError("waypoints must be finite")
     model = CostModel.from_scenario(scenario)
     names = [u.name for u in scenario.team]
-    costs = evaluate(model, wp[None])
-    broken = violations(model, wp, names)
+    with np.errstate(all="ignore"):  # extreme (validated) inputs give inf costs, not warnings
+        costs = evaluate(model, wp[None])
+        broken = outside_site(model, wp, names) + violations(model, wp, names)
     uavs = []
     for i, name in enumerate(names):
         w = f"uavs[{i}]"

@@ -285,32 +285,16 @@ def write_result(result: Any, path: str | os.PathLike[str]) -> Path:
     return write_json_atomic(result_to_dict(result), path)
 
 
-def _reject_constant(token: str) -> Any:
-    raise ValueError(f"non-standard JSON number {token!r} (infinity is written as \"inf\")")
-
-
 def load_json_strict(path: str | os.PathLike[str]) -> Any:
-    """Parse a strict-JSON file; ``NaN``/``Infinity`` tokens raise ``ValueError``.
+    """Parse a strict-JSON file, read once (a FIFO works); ``NaN``/``Infinity`` tokens raise
+    ``ValueError``.
 
-    Errors (missing file, bad JSON) are ``ValueError`` / ``OSError`` with one line naming the file.
+    Every error (missing file, a directory, not UTF-8, bad or too deeply nested JSON) is a
+    ``ValueError`` with one line naming the file.
     """
-    p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ValueError(f"{p}: no such file") from None
-    except IsADirectoryError:
-        raise ValueError(f"{p}: is a directory, not a JSON file") from None
-    except UnicodeDecodeError as exc:
-        raise ValueError(f"{p}: not UTF-8 text ({exc.reason})") from None
-    try:
-        return json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as exc:
-        raise ValueError(
-            f"{p}: not valid JSON: {exc.msg} (line {exc.lineno}, column {exc.colno})"
-        ) from None
-    except ValueError as exc:
-        raise ValueError(f"{p}: {exc}") from None
+    from staghunt.inputs import parse_json, read_text
+
+    return parse_json(read_text(path, "JSON file"), os.fspath(path))
 
 
 _NUMERIC_TOP = ("wall_time_s", "compile_time_s", "certificate_time_s", "metrics",
@@ -319,14 +303,18 @@ _NUMERIC_UAV = ("path", "heights", "cost", "history", "metrics")
 
 
 def read_result(path: str | os.PathLike[str], *, decode_inf: bool = True) -> dict[str, Any]:
-    """Read a ``result.json``. With ``decode_inf`` the ``"inf"`` strings of the numeric fields
-    become ``float("inf")`` (the scenario and the text fields are left as written).
+    """Read a ``result.json`` (once). With ``decode_inf`` the ``"inf"`` strings of the numeric
+    fields become ``float("inf")`` (the scenario and the text fields are left as written).
 
     Raises ``ValueError`` with one line if the file is missing, not strict JSON, or not a result.
     """
-    data = load_json_strict(path)
-    if not isinstance(data, dict) or data.get("format") != FORMAT or not isinstance(data.get("uavs"), list):
-        raise ValueError(f"{path}: not a staghunt result file (format {FORMAT!r})")
+    return result_from_data(load_json_strict(path), os.fspath(path), decode_inf=decode_inf)
+
+
+def result_from_data(data: Any, source: str = "RESULT.json", *, decode_inf: bool = True) -> dict[str, Any]:
+    """Check parsed ``result.json`` data (:func:`check_result_data`) and decode its ``"inf"``
+    strings (with ``decode_inf``)."""
+    check_result_data(data, source)
     if not decode_inf:
         return data
     out = dict(data)
@@ -342,3 +330,91 @@ def read_result(path: str | os.PathLike[str], *, decode_inf: bool = True) -> dic
         uavs.append(u)
     out["uavs"] = uavs
     return out
+
+
+_INT_SETTINGS = ("particles", "iterations", "waypoints")
+
+
+def _kind(value: Any) -> str:
+    from staghunt.inputs import show
+
+    if value is None:
+        return "null"
+    names = {bool: "a boolean", str: "a string", list: "a list", dict: "an object"}
+    for t, label in names.items():
+        if isinstance(value, t):
+            return f"{label} {show(value)}" if t in (str, bool) else label
+    return f"{type(value).__name__} {show(value)}"
+
+
+def _is_number(v: Any, allow_inf: bool = False) -> bool:
+    if isinstance(v, bool):
+        return False
+    if isinstance(v, int):
+        return True
+    if isinstance(v, float):
+        return math.isfinite(v) or allow_inf
+    return allow_inf and v in ("inf", "-inf")
+
+
+def check_result_data(data: Any, source: str = "RESULT.json") -> None:
+    """Raise ``ValueError`` (one line: ``source: element: problem``) unless ``data`` has the
+    shape of a ``result.json``: the format tag, ``uavs`` as objects with numeric ``path``
+    ((K + 2) x 3, finite, within :data:`staghunt.inputs.MAX_MAGNITUDE`) and ``heights``,
+    ``cost`` an object of numbers, ``settings`` numbers of the right kind, ``seed`` an integer
+    >= 0 and ``scenario`` an object. What is checked is what ``certify`` and ``evaluate`` use."""
+    from staghunt.inputs import MAX_MAGNITUDE
+
+    def fail(where: str, detail: str) -> None:
+        raise ValueError(f"{source}: {where}: {detail}")
+
+    if not isinstance(data, dict) or data.get("format") != FORMAT:
+        raise ValueError(f"{source}: not a staghunt result file (format {FORMAT!r})")
+    if not isinstance(data.get("uavs"), list):
+        fail("uavs", f"expected a list, got {_kind(data.get('uavs'))}")
+    if not isinstance(data.get("scenario"), dict):
+        fail("scenario", f"expected an object (the embedded scenario), got {_kind(data.get('scenario'))}")
+    seed = data.get("seed", 0)
+    if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
+        fail("seed", f"expected an integer >= 0, got {_kind(seed)}")
+    settings = data.get("settings", {})
+    if not isinstance(settings, dict):
+        fail("settings", f"expected an object, got {_kind(settings)}")
+    for key, v in settings.items():
+        if key in _INT_SETTINGS:
+            if isinstance(v, bool) or not isinstance(v, int):
+                fail(f"settings.{key}", f"expected an integer, got {_kind(v)}")
+        elif not _is_number(v):
+            fail(f"settings.{key}", f"expected a finite number, got {_kind(v)}")
+    lengths = set()
+    for n, u in enumerate(data["uavs"]):
+        w = f"uavs[{n}]"
+        if not isinstance(u, dict):
+            fail(w, f"expected an object, got {_kind(u)}")
+        path, heights = u.get("path"), u.get("heights")
+        if not isinstance(path, list) or len(path) < 3:
+            fail(f"{w}.path", f"expected a list of at least 3 [x, y, z] points, got {_kind(path)}")
+        for i, p in enumerate(path):
+            if not isinstance(p, list) or len(p) != 3:
+                fail(f"{w}.path[{i}]", f"expected [x, y, z], got {_kind(p)}")
+            for j, v in enumerate(p):
+                if not _is_number(v) or abs(v) > MAX_MAGNITUDE:
+                    fail(f"{w}.path[{i}][{j}]", f"expected a finite number of magnitude <= "
+                         f"{MAX_MAGNITUDE:.0e}, got {_kind(v)}")
+        if not isinstance(heights, list) or len(heights) != len(path):
+            fail(f"{w}.heights", f"expected a list of {len(path)} numbers (one per path point), got {_kind(heights)}"
+                 + (f" of {len(heights)}" if isinstance(heights, list) else ""))
+        for i, v in enumerate(heights):
+            if not _is_number(v) or abs(v) > MAX_MAGNITUDE:
+                fail(f"{w}.heights[{i}]", f"expected a finite number, got {_kind(v)}")
+        lengths.add(len(path))
+        cost = u.get("cost", {})
+        if not isinstance(cost, dict):
+            fail(f"{w}.cost", f"expected an object, got {_kind(cost)}")
+        for key in ("total", "single", "formation"):
+            if key in cost and not _is_number(cost[key], allow_inf=True):
+                fail(f"{w}.cost.{key}", f"expected a number or \"inf\", got {_kind(cost[key])}")
+        if "name" in u and not isinstance(u["name"], str):
+            fail(f"{w}.name", f"expected a string, got {_kind(u['name'])}")
+    if len(lengths) > 1:
+        fail("uavs", "every UAV's path must have the same number of points")

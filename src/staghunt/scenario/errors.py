@@ -15,11 +15,14 @@ class ScenarioError(ValueError):
     """
 
     def __init__(self, detail: str, key: str | None = None, source: str | None = None) -> None:
-        self.detail = detail
-        self.key = key
+        from staghunt.inputs import clip
+
+        # Echoed input (a 100,000-character key) is cut so the line stays readable.
+        self.detail = clip(detail)
+        self.key = None if key is None else clip(key)
         self.source = source
         parts = [p for p in (source, key) if p]
-        super().__init__(": ".join([*parts, detail]))
+        super().__init__(": ".join([*parts, self.detail]))
 
     def __reduce__(self) -> tuple[Any, ...]:
         return (self.__class__, (self.detail, self.key, self.source))

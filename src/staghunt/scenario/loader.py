@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from collections.abc import Mapping, Sequence
 from dataclasses import fields
 from importlib import resources
@@ -76,23 +75,22 @@ def load_scenario(source: str | os.PathLike[str]) -> Scenario:
     Relative DEM paths inside the file are resolved against the file's directory. The scenario's
     name defaults to the file's stem. Raises :class:`ScenarioError` on any problem.
     """
+    from staghunt.inputs import clip, describe_path, parse_toml, read_text
+
     text = os.fspath(source)
     if isinstance(source, str) and text in builtin_names():
         path = builtin_path(text)
     else:
         path = Path(text)
-        if not path.is_file():
+        if not text or describe_path(text).startswith("no such file"):
             raise ScenarioError(
-                f"no such scenario file {text!r} "
+                f"no such scenario file {clip(repr(text))} "
                 f"(built-in scenarios: {', '.join(builtin_names())})"
             )
-    try:
-        with path.open("rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError(f"invalid TOML: {exc}", source=str(path)) from None
-    except OSError as exc:
-        raise ScenarioError(f"cannot read file: {exc.strerror or exc}", source=str(path)) from None
+    try:  # read once: a FIFO (<(cat scenario.toml)) has no second chance
+        data = parse_toml(read_text(path, "scenario file (TOML)"), str(path))
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
     try:
         return scenario_from_dict(data, name=path.stem, base_dir=path.parent)
     except ScenarioError as exc:
@@ -290,7 +288,14 @@ def scenario_from_dict(
     """
     from staghunt.scenario.schema import plain, validate
 
-    f = validate(plain(data))
+    from staghunt.inputs import check_magnitudes
+
+    data = plain(data)
+    try:
+        check_magnitudes(data)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    f = validate(data)
     scenario_name = f.name if f.name is not None else name
     if not scenario_name.strip():
         raise ScenarioError("must not be empty", "name")
