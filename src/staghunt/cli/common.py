@@ -37,10 +37,18 @@ def int_at_least(low: int) -> Any:
     """An argparse ``type`` accepting integers ``>= low``."""
 
     def parse(text: str) -> int:
+        from staghunt.inputs import show
+
         try:
             value = int(text)
         except ValueError:
-            raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {text!r}") from None
+            try:  # 1e6: an integer written in exponent notation
+                f = float(text)
+            except ValueError:
+                f = math.nan
+            if not (math.isfinite(f) and f.is_integer() and abs(f) < 1e18):
+                raise argparse.ArgumentTypeError(f"expected an integer >= {low}, got {show(text)}") from None
+            value = int(f)
         if value < low:
             raise argparse.ArgumentTypeError(f"must be an integer >= {low}, got {value}")
         return value
@@ -211,8 +219,11 @@ def check_path_lengths(path: Path, label: str) -> None:
     (``NAME_MAX``, 255 bytes on most) or the whole path longer than ``PATH_MAX`` (4096)."""
     anchor = Path(".")
     for parent in [*reversed(path.absolute().parents)]:
-        if parent.is_dir():
-            anchor = parent
+        try:
+            if parent.is_dir():
+                anchor = parent
+        except OSError:  # a name too long to even look up
+            break
     limit = _name_max(anchor)
     for part in path.parts:
         if len(os.fsencode(part)) > limit:
