@@ -16,7 +16,7 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 F8 = 8
 BASELINE_BYTES = 190 * 2**20
@@ -196,9 +196,10 @@ def _first_time(estimate: MemoryEstimate) -> bool:
 
 
 def check_memory(estimate: MemoryEstimate, shrink: str = "fewer particles, iterations or waypoints",
-                 available: int | None = None) -> MemoryEstimate:
+                 available: int | None = None, warn: Callable[[str], None] | None = None) -> MemoryEstimate:
     """Raise :class:`MemoryBudgetError` if ``estimate`` cannot fit in the available memory;
-    log a warning (logger ``staghunt.budget``) above :data:`WARN_FRACTION` of it."""
+    above :data:`WARN_FRACTION` of it, warn once through ``warn`` (default: a warning on the
+    ``staghunt.budget`` logger)."""
     source = "given"
     if available is None:
         available, source = available_memory()
@@ -210,8 +211,8 @@ def check_memory(estimate: MemoryEstimate, shrink: str = "fewer particles, itera
             f"{human(available)} available ({source}); use {shrink}"
         )
     if estimate.total > WARN_FRACTION * available and _first_time(estimate):
-        logger.warning(
-            "staghunt: warning: the %s needs %s, %.0f%% of the %s available",
-            estimate.what, human(estimate.total), 100.0 * estimate.total / available, human(available),
+        (warn or logger.warning)(
+            f"staghunt: warning: the {estimate.what} needs {human(estimate.total)}, "
+            f"{100.0 * estimate.total / available:.0f}% of the {human(available)} available ({source})"
         )
     return estimate

@@ -157,6 +157,9 @@ def plan_from_result_data(data: dict[str, Any], source: str = "RESULT.json") -> 
     from staghunt.scenario.model import check_settings
 
     check_settings(settings, what=f"{source}: settings")  # e.g. velocity_fraction = 0: no search
+    if settings.c1 == 0 and settings.c2 == 0:
+        raise ValueError(f"{source}: settings: c1 and c2 are both 0, so no search can move towards a "
+                         "better path; such settings certify nothing")
     return scenario, np.stack(rows), settings
 
 
@@ -164,6 +167,7 @@ def certify_result_file(
     path: str,
     *,
     data: dict[str, Any] | None = None,
+    warn: Callable[[str], None] | None = None,
     particles: int = DEFAULT_PARTICLES,
     iterations: int = DEFAULT_ITERATIONS,
     seed: int = 0,
@@ -191,7 +195,7 @@ def certify_result_file(
         raise ValueError(f"{path}: uavs: {outside[0]}" + (f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""))
     check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
                                   particles, iterations, engine, threads),
-                 shrink="a smaller --particles or --iterations")
+                 shrink="a smaller --particles or --iterations", warn=warn)
     cert = certify_plan(scenario, wp, particles=particles, iterations=iterations, seed=seed,
                         epsilon=epsilon, settings=settings, progress=progress,
                         engine=engine, threads=threads)

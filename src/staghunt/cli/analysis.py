@@ -48,6 +48,7 @@ from staghunt.cli.common import (
     os_reason,
     path_argument,
     safe_name,
+    say,
 )
 
 
@@ -188,7 +189,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
         engine = get_engine(args.engine, args.threads)
         for m in methods:  # every run must fit before the first one starts
-            check_memory(estimate_plan(scenario, settings, m, engine, args.threads, certify_options(args)))
+            check_memory(estimate_plan(scenario, settings, m, engine, args.threads, certify_options(args)),
+                         warn=say)
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
     certify = certify_options(args)
@@ -259,14 +261,14 @@ def cmd_certify(args: argparse.Namespace) -> int:
     try:
         if args.out is not None:
             target = Path(args.out)
+            check_path_lengths(target, "--out")
             if target.is_dir():
                 raise ValueError(f"--out {str(target)!r} is a directory; give a file name")
-            check_path_lengths(target, "--out")
             if not target.parent.is_dir() and str(target.parent):
                 raise ValueError(f"--out {str(target)!r}: no such directory {str(target.parent)!r}")
         data = read_result(args.result)  # once: RESULT.json may be a pipe (<(cat result.json))
         seed = args.seed if args.seed is not None else int(data.get("seed", 0))
-        cert, data = certify_result_file(args.result, data=data, particles=args.particles,
+        cert, data = certify_result_file(args.result, data=data, warn=say, particles=args.particles,
                                          iterations=args.iterations, seed=seed,
                                          epsilon=args.epsilon, progress=progress,
                                          **engine_kwargs(args))

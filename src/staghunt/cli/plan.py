@@ -109,7 +109,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     # Every check before the search: the budget must fit in memory, the directory must exist.
     check_memory(estimate_plan(scenario, settings, args.method, get_engine(args.engine, args.threads),
-                               args.threads, certify))
+                               args.threads, certify), warn=say)
     try:  # before the search: a plan must never be computed only to be thrown away
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

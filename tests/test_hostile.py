@@ -1,0 +1,577 @@
+"""Hostile input through the real CLI: every case exits with the documented code, stderr holds at
+most one line (never a traceback or a Python warning), and nothing half-written stays behind.
+
+Run in-process through ``staghunt.cli.main`` (plus a few subprocesses for pipes and FIFOs), with
+tiny budgets and the NumPy engine so that the whole module stays fast.
+"""
+
+from __future__ import annotations
+
+import copy
+import json
+import os
+import re
+import subprocess
+import sys
+import threading
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from staghunt import budget
+from staghunt.cli import main
+from staghunt.scenario import builtin_path
+
+TINY = ["--particles", "6", "--iterations", "1", "--waypoints", "3", "--engine", "numpy",
+        "--certify-particles", "4", "--certify-iterations", "1", "--no-plots", "--quiet"]
+CERT = ["--particles", "4", "--iterations", "1", "--engine", "numpy", "--quiet"]
+SCENARIO_TEXT = builtin_path("scenario1").read_text(encoding="utf-8")
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+
+# ------------------------------------------------------------------------------------------------
+# Helpers
+# ------------------------------------------------------------------------------------------------
+
+
+def run(capsys, *argv: str) -> tuple[int, str, str]:
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_clean(err: str, code: int) -> None:
+    """At most one line on stderr (exactly one, an error line, for exit 2), short, no traceback
+    or warning."""
+    lines = err.splitlines()
+    assert "Traceback" not in err and "Warning" not in err and "Exception ignored" not in err, err
+    if code == 2:
+        assert len(lines) == 1, err
+        assert lines[0].startswith("staghunt: error: "), err
+    else:
+        assert len(lines) <= 1, err
+    assert all(len(line) <= 500 for line in lines), [len(line) for line in lines]
+
+
+def refused(capsys, *argv: str, expect: str | None = None) -> str:
+    code, out, err = run(capsys, *argv)
+    assert code == 2, (code, out, err)
+    assert_clean(err, code)
+    if expect is not None:
+        assert re.search(expect, err), err
+    return err
+
+
+def no_leftovers(directory: Path) -> None:
+    """No temporary (half-written) file in ``directory``."""
+    if directory.exists():
+        assert not [p.name for p in directory.iterdir() if p.name.endswith(".tmp")]
+
+
+def toml_with(**values: str) -> str:
+    """scenario1's TOML with the first ``key = ...`` line of each key replaced."""
+    text = SCENARIO_TEXT
+    for key, value in values.items():
+        text, n = re.subn(rf"(?m)^{key}\s*=.*$", f"{key} = {value}", text, count=1)
+        assert n == 1, key
+    return text
+
+
+def write(tmp_path: Path, name: str, text: str | bytes) -> Path:
+    p = tmp_path / name
+    if isinstance(text, bytes):
+        p.write_bytes(text)
+    else:
+        p.write_text(text, encoding="utf-8")
+    return p
+
+
+def feed_fifo(path: Path, data: bytes) -> threading.Thread:
+    """Create a FIFO at ``path`` and write ``data`` into it from a thread (one reader)."""
+    os.mkfifo(path)
+
+    def writer() -> None:
+        with open(path, "wb") as fh:
+            fh.write(data)
+
+    t = threading.Thread(target=writer, daemon=True)
+    t.start()
+    return t
+
+
+@pytest.fixture(scope="module")
+def result_file(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("plan")
+    assert main(["plan", "scenario1", *TINY, "--seed", "1", "--out", str(out)]) in (0, 3)
+    return out / "result.json"
+
+
+@pytest.fixture(scope="module")
+def result_data(result_file) -> dict:
+    return json.loads(result_file.read_text())
+
+
+def paths_of(result: dict) -> dict:
+    return {"uavs": [{"waypoints": [[p[0], p[1], h] for p, h in zip(u["path"][1:-1], u["heights"][1:-1])]}
+                     for u in result["uavs"]]}
+
+
+# ------------------------------------------------------------------------------------------------
+# Scenario files (show / plan)
+# ------------------------------------------------------------------------------------------------
+
+
+SCENARIO_CASES = {
+    "utf16": (SCENARIO_TEXT.encode("utf-16"), r"not UTF-8 text.*UTF-16"),
+    "latin1": ("description = 'caf\u00e9'\n".encode("latin-1") + SCENARIO_TEXT.encode(), r"not UTF-8"),
+    "empty": (b"", r"site: required key is missing"),
+    "binary": (bytes(range(256)), r"not UTF-8|invalid TOML"),
+    "nul": (b"name = \"a\x00b\"\n", r"invalid TOML"),
+    "deep_array": ("a = " + "[" * 50000 + "]" * 50000, r"nested too deeply|nested more than"),
+    "deep_table": ("a = " + "{b = " * 3000 + "1" + "}" * 3000, r"nested too deeply|nested more than"),
+    "huge_int": (toml_with(xmax="1" + "0" * 400), r"site\.xmax: an integer of \d+ bits is beyond"),
+    "huge_int_4300": (toml_with(xmax="1" * 5000), r"invalid TOML|beyond"),
+    "huge_key": (SCENARIO_TEXT + "\n" + "k" * 100_000 + " = 1\n", r"unknown key"),
+    "huge_value": (toml_with(description='"' + "d" * 100_000 + '"'), None),
+    "desired_height_1e308": (toml_with(desired_height="1e308"), r"costs\.desired_height: 1e\+308 is beyond"),
+    "xmax_1e300": (toml_with(xmax="1e300"), r"site\.xmax: 1e\+300 is beyond"),
+    "xmin_minus_1e308": (toml_with(xmin="-1.7e308"), r"site\.xmin"),
+    "start_near_1e308": (toml_with(start="[1e307, 10, 20]"), r"team\[0\]\.start\[0\]"),
+    "weight_huge": (toml_with(weights="[1e300, 1, 1, 1, 1]"), r"team\[0\]\.weights\[0\]"),
+    "nan": (toml_with(xmax="nan"), r"site\.xmax: must be a finite number"),
+    "inf": (toml_with(hmax="inf"), r"site\.hmax: must be a finite number"),
+    "string_number": (toml_with(xmax='"100"'), r"site\.xmax: expected a number"),
+    "negative_radius": (toml_with(radius="-1"), r"radius"),
+    "waypoints_float": (toml_with(waypoints="1e8"), r"solver\.waypoints: expected an integer"),
+    "particles_zero": (toml_with(particles="0"), r"solver\.particles"),
+    "velocity_fraction_0": (toml_with(velocity_fraction="0"), r"velocity_fraction"),
+    "bool_number": (toml_with(xmax="true"), r"site\.xmax"),
+    "array_for_table": ("site = [1, 2]\n" + SCENARIO_TEXT.replace("[site]", "[site_]"), r"site|unknown key"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SCENARIO_CASES))
+def test_scenario_file_refused(tmp_path, capsys, case):
+    data, expect = SCENARIO_CASES[case]
+    if case == "huge_value":  # valid, only long: shown (not refused), the plan may use it
+        p = write(tmp_path, "s.toml", data)
+        code, out, err = run(capsys, "show", str(p))
+        assert code == 0 and not err
+        return
+    p = write(tmp_path, "s.toml", data)
+    err = refused(capsys, "show", str(p), expect=expect)
+    assert str(p) in err  # the file is named
+
+
+@pytest.mark.parametrize("case", ["utf16", "huge_key", "desired_height_1e308", "deep_array"])
+def test_plan_refuses_before_creating_anything(tmp_path, capsys, case):
+    p = write(tmp_path, "s.toml", SCENARIO_CASES[case][0])
+    out = tmp_path / "out"
+    refused(capsys, "plan", str(p), *TINY, "--out", str(out))
+    assert not out.exists()
+
+
+def test_scenario_directory_fifo_missing(tmp_path, capsys):
+    refused(capsys, "show", str(tmp_path), expect=r"a directory, not a file")
+    refused(capsys, "show", str(tmp_path / "nope.toml"), expect=r"no such scenario file")
+    refused(capsys, "show", "", expect=r"no such scenario file")
+    fifo = tmp_path / "scenario.fifo"
+    t = feed_fifo(fifo, SCENARIO_TEXT.encode())
+    code, out, err = run(capsys, "show", str(fifo))
+    t.join(5)
+    assert code == 0 and json.loads(out)["name"] == "scenario1" and not err
+
+
+def test_utf8_bom_is_accepted(tmp_path, capsys):
+    p = write(tmp_path, "bom.toml", b"\xef\xbb\xbf" + SCENARIO_TEXT.encode())
+    code, out, err = run(capsys, "show", str(p))
+    assert code == 0 and not err
+
+
+def test_long_error_lines_are_cut(tmp_path, capsys):
+    key = "k" * 100_000
+    p = write(tmp_path, "s.toml", SCENARIO_TEXT + f"\n{key} = 1\n")
+    err = refused(capsys, "show", str(p))
+    assert len(err) < 600 and "..." in err
+
+
+# ------------------------------------------------------------------------------------------------
+# evaluate
+# ------------------------------------------------------------------------------------------------
+
+
+def _evaluate(tmp_path, capsys, data, name="paths.json") -> tuple[int, str, str]:
+    p = tmp_path / name
+    p.write_text(data if isinstance(data, str) else json.dumps(data))
+    code, out, err = run(capsys, "evaluate", "scenario1", str(p))
+    assert_clean(err, code)
+    return code, out, err
+
+
+@pytest.mark.parametrize("coord,value,bound", [(2, 60.0, "hmax"), (2, -3.0, "hmin"), (0, 1e6, "xmax"),
+                                               (1, -500.0, "ymin")])
+def test_evaluate_outside_site_box_is_infeasible(tmp_path, capsys, result_data, coord, value, bound):
+    data = paths_of(result_data)
+    data["uavs"][0]["waypoints"][1][coord] = value
+    code, out, err = _evaluate(tmp_path, capsys, data)
+    assert code == 3
+    report = json.loads(out)
+    assert report["status"] == "infeasible"
+    assert any("leaves the site box" in v and f"site.{bound}" in v for v in report["violations"])
+
+
+@pytest.mark.parametrize("value,expect", [
+    (1e200, r"uavs\[0\]\.waypoints\[0\]\[0\]: 1e\+200 is beyond"),
+    (int("9" * 400), r"uavs\[0\]\.waypoints\[0\]\[0\]: an integer beyond"),
+    (-1.7e308, r"is beyond"),
+    ("10", r"expected a number"),
+    (None, r"expected a number"),
+    (True, r"expected a number"),
+    ([1, 2], r"expected a number"),
+])
+def test_evaluate_bad_numbers(tmp_path, capsys, result_data, value, expect):
+    data = paths_of(result_data)
+    data["uavs"][0]["waypoints"][0][0] = value
+    p = tmp_path / "paths.json"
+    p.write_text(json.dumps(data))
+    refused(capsys, "evaluate", "scenario1", str(p), expect=expect)
+
+
+@pytest.mark.parametrize("text,expect", [
+    ("[" * 100_000 + "]" * 100_000, r"nested too deeply"),
+    ('{"uavs": [[[NaN, 1, 2]]]}', r"non-standard JSON number"),
+    ('{"uavs": [Infinity]}', r"non-standard JSON number"),
+    ('{"uavs": [' + "1" * 5000 + "]}", r"not valid JSON"),
+    ("", r"not valid JSON"),
+    ("[]", r"expected a JSON object"),
+    ('{"uavs": null}', r"uavs: expected a list"),
+    ('{"uavs": [null, null, null]}', r"uavs\[0\]: expected an object"),
+    ('{"uavs": []}', r"has 3 UAVs"),
+    ('{"' + "x" * 100_000 + '": 1}', r"unknown key"),
+    ('{"uavs": [{"waypoints": [], "path": []}, {}, {}]}', r"exactly one"),
+    ('{"uavs": [{"waypoints": []}, {}, {}]}', r"at least 1 free waypoint"),
+])
+def test_evaluate_bad_files(tmp_path, capsys, text, expect):
+    p = tmp_path / "paths.json"
+    p.write_text(text)
+    err = refused(capsys, "evaluate", "scenario1", str(p), expect=expect)
+    assert str(p) in err
+
+
+def test_evaluate_utf16_directory_missing(tmp_path, capsys):
+    p = tmp_path / "paths.json"
+    p.write_bytes('{"uavs": []}'.encode("utf-16"))
+    refused(capsys, "evaluate", "scenario1", str(p), expect=r"not UTF-8 text.*UTF-16")
+    refused(capsys, "evaluate", "scenario1", str(tmp_path), expect=r"a directory")
+    refused(capsys, "evaluate", "scenario1", str(tmp_path / "none.json"), expect=r"no such file")
+
+
+def test_evaluate_accepts_a_result_file(capsys, result_file, result_data):
+    code, out, err = run(capsys, "evaluate", "scenario1", str(result_file))
+    assert_clean(err, code)
+    assert code == (0 if result_data["status"] == "feasible" else 3)
+    report = json.loads(out)
+    for u, stored in zip(report["uavs"], result_data["uavs"]):
+        assert u["total"] == stored["cost"]["total"]
+
+
+def test_evaluate_result_file_in_another_scenario(tmp_path, capsys, result_file, result_data):
+    """The paths are evaluated in the scenario given (scenario2 shares scenario1's team); a team
+    that does not match is refused."""
+    code, out, err = run(capsys, "evaluate", "scenario2", str(result_file))
+    assert code in (0, 3) and json.loads(out)["scenario"] == "scenario2"
+    assert_clean(err, code)
+    d = copy.deepcopy(result_data)
+    d["uavs"] = d["uavs"][:2]
+    p = tmp_path / "two.json"
+    p.write_text(json.dumps(d))
+    refused(capsys, "evaluate", "scenario1", str(p), expect=r"has 3 UAVs")
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.recursive(st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False, allow_infinity=False)
+                    | st.text(max_size=5),
+                    lambda inner: st.lists(inner, max_size=4) | st.dictionaries(st.text(max_size=5), inner, max_size=3),
+                    max_leaves=20))
+def test_evaluate_random_json_never_crashes(tmp_path, capsys, value):
+    data = {"uavs": [{"waypoints": value}, {"waypoints": value}, {"waypoints": value}]}
+    p = tmp_path / "random.json"
+    p.write_text(json.dumps(data))
+    code, out, err = run(capsys, "evaluate", "scenario1", str(p))
+    assert code in (0, 2, 3)
+    assert_clean(err, code)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.sampled_from(["xmin", "xmax", "ymax", "hmin", "hmax", "radius", "beta", "danger_margin",
+                        "safe_distance", "desired_height", "min_clearance", "c0", "c1", "damping"]),
+       st.one_of(st.floats(), st.integers(min_value=-10**30, max_value=10**30),
+                 st.text(alphabet="abc\"'[]{}", max_size=4)))
+def test_scenario_random_values_never_crash(tmp_path, capsys, key, value):
+    if isinstance(value, str):
+        literal = json.dumps(value)
+    elif isinstance(value, float) and value != value:
+        literal = "nan"
+    elif isinstance(value, float) and abs(value) == float("inf"):
+        literal = "inf" if value > 0 else "-inf"
+    else:
+        literal = repr(value)
+    p = tmp_path / "random.toml"
+    p.write_text(toml_with(**{key: literal}))
+    code, out, err = run(capsys, "show", str(p))
+    assert code in (0, 2)
+    assert_clean(err, code)
+
+
+# ------------------------------------------------------------------------------------------------
+# certify
+# ------------------------------------------------------------------------------------------------
+
+
+def _tampered(result_data: dict, edit) -> dict:
+    d = copy.deepcopy(result_data)
+    edit(d)
+    return d
+
+
+CERTIFY_CASES = {
+    "cost_list": (lambda d: d["uavs"][0].__setitem__("cost", [1, 2]), r"uavs\[0\]\.cost: expected an object"),
+    "cost_total_string": (lambda d: d["uavs"][0]["cost"].__setitem__("total", "big"), r"uavs\[0\]\.cost\.total"),
+    "uav_null": (lambda d: d["uavs"].__setitem__(1, None), r"uavs\[1\]: expected an object, got null"),
+    "setting_string": (lambda d: d["settings"].__setitem__("c1", "1.5"), r"settings\.c1: expected a finite number"),
+    "particles_string": (lambda d: d["settings"].__setitem__("particles", "10"), r"settings\.particles"),
+    "velocity_fraction_0": (lambda d: d["settings"].__setitem__("velocity_fraction", 0),
+                            r"settings: velocity_fraction must be a number in \(0, 1\]"),
+    "c1_c2_zero": (lambda d: d["settings"].update(c1=0, c2=0), r"c1 and c2 are both 0"),
+    "settings_list": (lambda d: d.__setitem__("settings", [1]), r"settings: expected an object"),
+    "seed_negative": (lambda d: d.__setitem__("seed", -1), r"seed: expected an integer >= 0"),
+    "seed_string": (lambda d: d.__setitem__("seed", "0"), r"seed"),
+    "no_format": (lambda d: d.pop("format"), r"not a staghunt result file"),
+    "uavs_missing": (lambda d: d.pop("uavs"), r"uavs: expected a list"),
+    "scenario_null": (lambda d: d.__setitem__("scenario", None), r"scenario: expected an object"),
+    "path_short": (lambda d: d["uavs"][0].__setitem__("path", [[0, 0, 0]]), r"uavs\[0\]\.path"),
+    "path_huge": (lambda d: d["uavs"][0]["path"][1].__setitem__(0, 1e200), r"uavs\[0\]\.path\[1\]\[0\]"),
+    "path_int_400": (lambda d: d["uavs"][0]["path"][1].__setitem__(0, int("9" * 400)), r"uavs\[0\]\.path\[1\]\[0\]"),
+    "heights_short": (lambda d: d["uavs"][0].__setitem__("heights", [1.0]), r"uavs\[0\]\.heights"),
+    "outside_site": (lambda d: d["uavs"][0]["heights"].__setitem__(1, 500.0), r"leaves the site box"),
+    "scenario_bad": (lambda d: d["scenario"]["site"].__setitem__("xmax", "x"), r"embedded scenario.*site\.xmax"),
+    "scenario_huge": (lambda d: d["scenario"]["costs"].__setitem__("desired_height", 1e308), r"desired_height"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(CERTIFY_CASES))
+def test_certify_hand_edited_result(tmp_path, capsys, result_data, case):
+    edit, expect = CERTIFY_CASES[case]
+    p = tmp_path / "result.json"
+    p.write_text(json.dumps(_tampered(result_data, edit)))
+    err = refused(capsys, "certify", str(p), *CERT, expect=expect)
+    assert str(p) in err
+
+
+def test_certify_reads_a_fifo_once(tmp_path, capsys, result_file):
+    fifo = tmp_path / "result.fifo"
+    t = feed_fifo(fifo, result_file.read_bytes())
+    code, out, err = run(capsys, "certify", str(fifo), *CERT)
+    t.join(5)
+    assert code in (0, 3), err
+    assert_clean(err, code)
+    assert "verdict:" in out
+
+
+@pytest.mark.parametrize("argv,expect", [
+    (["--particles", "1e12"], r"would need about .* available .*smaller --particles"),
+    (["--particles", "1000000000000"], r"would need about"),
+    (["--iterations", "100000000000"], r"would need about"),
+    (["--particles", "0"], r"--particles"),
+    (["--particles", "abc"], r"--particles"),
+    (["--epsilon", "nan"], r"--epsilon"),
+    (["--epsilon", "1e999"], r"--epsilon"),
+    (["--seed", "-1"], r"--seed"),
+    (["--threads", "0"], r"--threads"),
+    (["--out", ""], r"--out: must not be empty"),
+    (["--out", "/nonexistent-dir/cert.json"], r"no such directory"),
+    (["--out", "x" * 300], r"this file system allows"),
+])
+def test_certify_bad_options(tmp_path, capsys, result_file, argv, expect):
+    refused(capsys, "certify", str(result_file), "--engine", "numpy", "--quiet", *argv, expect=expect)
+
+
+def test_certify_out_is_a_directory(tmp_path, capsys, result_file):
+    refused(capsys, "certify", str(result_file), *CERT, "--out", str(tmp_path), expect=r"is a directory")
+
+
+# ------------------------------------------------------------------------------------------------
+# plan: output directory, budgets, dry run
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv,expect", [
+    (["--out", ""], r"--out: must not be empty"),
+    (["--out", " "], r"--out: must not be empty"),
+    (["--particles", "-1"], r"--particles"),
+    (["--iterations", "1.5"], r"--iterations"),
+    (["--waypoints", "0"], r"--waypoints"),
+    (["--method", "nope"], r"--method"),
+    (["--engine", "fast"], r"--engine"),
+    (["--seed", "x"], r"--seed"),
+    (["--epsilon", "-1%"], r"--epsilon"),
+    (["--certify-particles", "0"], r"--certify-particles"),
+])
+def test_plan_bad_options(tmp_path, capsys, monkeypatch, argv, expect):
+    monkeypatch.chdir(tmp_path)
+    refused(capsys, "plan", "scenario1", *TINY, *argv, expect=expect)
+    assert not (tmp_path / "runs").exists()
+
+
+def test_plan_out_name_too_long(tmp_path, capsys):
+    out = tmp_path / ("a" * 300)
+    refused(capsys, "plan", "scenario1", *TINY, "--out", str(out), expect=r"allows 255")
+    deep = tmp_path.joinpath(*(["d" * 200] * 25))
+    refused(capsys, "plan", "scenario1", *TINY, "--out", str(deep), expect=r"longer than 4096")
+
+
+def test_plan_out_is_a_file(tmp_path, capsys):
+    f = tmp_path / "file"
+    f.write_text("x")
+    refused(capsys, "plan", "scenario1", *TINY, "--out", str(f), expect=r"not a directory")
+    refused(capsys, "plan", "scenario1", *TINY, "--out", str(f / "sub"), expect=r"not a directory")
+
+
+def test_plan_400_character_scenario_name_plans(tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    p = write(tmp_path, "long.toml", toml_with(name='"' + "n" * 400 + '"'))
+    code, out, err = run(capsys, "plan", str(p), *TINY)
+    assert code in (0, 3)
+    assert_clean(err, code)
+    (made,) = (tmp_path / "runs").iterdir()
+    assert len(made.name) < 100 and (made / "result.json").is_file()
+
+
+@pytest.mark.parametrize("argv", [
+    ["--particles", "1e8"],
+    ["--particles", "100000000"],
+    ["--iterations", "1e12"],
+    ["--waypoints", "100000000"],
+    ["--certify-particles", "1e10"],
+])
+def test_plan_budget_that_cannot_fit(tmp_path, capsys, monkeypatch, argv):
+    monkeypatch.setattr(budget, "available_memory", lambda: (8 * 2**30, "MemAvailable"))
+    out = tmp_path / "out"
+    err = refused(capsys, "plan", "scenario1", *TINY, *argv, "--out", str(out),
+                  expect=r"would need about .* GB|TB.*8 GB available")
+    assert "8 GB available" in err and "use fewer" in err
+    assert not out.exists()
+
+
+def test_scenario_waypoints_that_cannot_fit(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(budget, "available_memory", lambda: (8 * 2**30, "MemAvailable"))
+    p = write(tmp_path, "k.toml", toml_with(waypoints="100000000"))
+    refused(capsys, "plan", str(p), "--particles", "6", "--iterations", "1", "--no-plots",
+            "--out", str(tmp_path / "o"), expect=r"would need about")
+    assert not (tmp_path / "o").exists()
+
+
+def test_plan_big_budget_warns_once(tmp_path, capsys, monkeypatch):
+    est = budget.estimate_plan(__import__("staghunt").load_scenario("scenario1"),
+                               __import__("staghunt").load_scenario("scenario1").solver.with_(
+                                   particles=6, iterations=1, waypoints=3), "game", "numpy")
+    monkeypatch.setattr(budget, "available_memory", lambda: (int(est.total * 2.5), "MemAvailable"))
+    budget._warned.clear()
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "plan", "scenario1", *TINY, "--no-certify", "--out", str(out))
+    assert code in (0, 3)
+    assert_clean(err, code)
+    assert err.startswith("staghunt: warning: the plan needs")
+    assert (out / "result.json").is_file()
+
+
+def test_library_plan_refuses_before_allocating(monkeypatch):
+    import staghunt
+
+    monkeypatch.setattr(budget, "available_memory", lambda: (2**30, "MemAvailable"))
+    s = staghunt.load_scenario("scenario1")
+    with pytest.raises(budget.MemoryBudgetError, match="would need"):
+        staghunt.plan(s, settings=s.solver.with_(particles=10**8, iterations=1), engine="numpy")
+
+
+def test_dry_run_prints_estimate_and_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "out"
+    code, stdout, err = run(capsys, "plan", "scenario1", "--particles", "3e6", "--dry-run", "--out", str(out))
+    assert code == 0 and not err
+    assert re.search(r"memory: about [\d.]+ GB", stdout)
+    assert "3000000 particles" in stdout
+    assert not out.exists()
+
+
+def test_estimate_grows_with_the_budget():
+    import staghunt
+
+    s = staghunt.load_scenario("scenario1")
+    small = budget.estimate_plan(s, s.solver.with_(particles=1000), "paper", "numba", 1)
+    big = budget.estimate_plan(s, s.solver.with_(particles=100_000), "paper", "numba", 1)
+    assert big.arrays > 50 * small.arrays
+    assert budget.estimate_plan(s, s.solver, "game", "numpy").arrays > budget.estimate_plan(
+        s, s.solver, "game", "numba", 1).arrays
+
+
+def test_available_memory_is_read():
+    avail, source = budget.available_memory()
+    assert avail is None or avail > 0
+
+
+# ------------------------------------------------------------------------------------------------
+# compare
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("argv,expect", [
+    (["--out", ""], r"--out: must not be empty"),
+    (["--seeds", "x-y"], r"seed"),
+    (["--methods", "nope"], r"nope"),
+    (["--particles", "1e12"], r"would need about"),
+])
+def test_compare_bad_input(tmp_path, capsys, argv, expect):
+    out = tmp_path / "cmp"
+    args = ["compare", "scenario1", "--particles", "6", "--iterations", "1", "--waypoints", "3",
+            "--seeds", "1", "--engine", "numpy", "--no-certify", "--no-figure", "--quiet", "--out", str(out)]
+    refused(capsys, *args, *argv, expect=expect)
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# Pipes and processes: nothing lost, no "Exception ignored"
+# ------------------------------------------------------------------------------------------------
+
+
+def _sub(args: list[str], shell_tail: str, tmp_path: Path, unbuffered: bool = False) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    py = f"{sys.executable} {'-u ' if unbuffered else ''}-m staghunt"
+    cmd = f"{py} {' '.join(args)} {shell_tail}; echo \"rc=${{PIPESTATUS[0]}}\" >&2"
+    return subprocess.run(["bash", "-c", cmd], capture_output=True, text=True, env=env, cwd=tmp_path, timeout=120)
+
+
+@pytest.mark.parametrize("unbuffered", [False, True])
+def test_plan_into_a_closed_pipe_keeps_the_result(tmp_path, unbuffered):
+    args = ["plan", "scenario1", *TINY[:-1], "--out", "out"]  # not quiet: the report is long
+    proc = _sub(args, "| head -c 1 >/dev/null", tmp_path, unbuffered)
+    assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr, proc.stderr
+    assert "rc=141" in proc.stderr or "rc=0" in proc.stderr or "rc=3" in proc.stderr, proc.stderr
+    result = json.loads((tmp_path / "out" / "result.json").read_text())
+    assert result["format"] == "staghunt-result/1"
+    no_leftovers(tmp_path / "out")
+
+
+def test_plan_with_stderr_into_a_closed_pipe(tmp_path):
+    args = ["plan", "scenario1", "--particles", "6", "--iterations", "40", "--waypoints", "3", "--engine",
+            "numpy", "--no-certify", "--no-plots", "--out", "out"]
+    proc = _sub(args, "2>&1 | head -c 1 >/dev/null", tmp_path, unbuffered=True)
+    assert "Traceback" not in proc.stderr and "Exception ignored" not in proc.stderr, proc.stderr
+    assert (tmp_path / "out" / "result.json").is_file()
+
+
+def test_certify_process_substitution(tmp_path, result_file):
+    proc = _sub(["certify", f"<(cat {result_file})", *CERT], "", tmp_path)
+    assert "not valid JSON" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
+    assert "verdict:" in proc.stdout
