@@ -1,4 +1,5 @@
-"""``J_n = J_s + beta_n J_f`` for whole populations of team paths (NumPy reference engine)."""
+"""``J_n = J_s + beta_n J_f`` (docs/model.md eq. (4)) for whole populations of team paths (NumPy
+reference engine); violations as in eq. (15)."""
 
 from __future__ import annotations
 
@@ -51,7 +52,7 @@ def formation_cost(model: CostModel, abs_path: np.ndarray) -> tuple[np.ndarray, 
     """``J_f`` ``(P, N)`` and separation deficit ``(P, N)`` for absolute full paths ``(P, N, K+2, 3)``.
 
     ``E_n(k)`` is ``inf`` at a free waypoint where UAV ``n``'s nearest team-mate is within
-    ``d_s + 2 r_n`` (eq. 6). With ``continuous_separation``, ``J_f`` is also ``inf`` when that
+    ``d_s + 2 r_n`` (docs/model.md eq. (6a)). With ``continuous_separation`` (eq. (6b)), ``J_f`` is also ``inf`` when that
     happens anywhere along a segment (closest approach of the synchronised motion).
     """
     wp = abs_path[:, :, 1:-1]
