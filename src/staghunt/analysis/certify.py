@@ -4,7 +4,7 @@ The search itself lives in :mod:`staghunt.solvers.response` (re-exported here). 
 
 
 
-A team plan ``X = (X_1 .. X_N)`` is a Nash equilibrium of the game of MODEL.md section 5 when
+A team plan ``X = (X_1 .. X_N)`` is a Nash equilibrium of the game of docs/model.md section 5 when
 no UAV can lower its own cost ``J_n(X_n, X_-n)`` by changing only its own path. For every UAV
 ``n`` this module fixes the others' paths, re-optimises ``X_n`` alone on ``J_n`` with
 single-player SPSO (one swarm, :func:`staghunt.solvers.swarm.run_swarm`), seeded, with a given

@@ -14,7 +14,7 @@ one generator:
    the current path, the UAV's earlier replies and perturbations of the current path
    (:data:`LOCAL_SHARE` of the particles). A reply replaces the path only if the plan stays
    feasible and ``J_n`` drops by more than :data:`ACCEPT_TOL` (relative). With the paper's
-   symmetric edge weights the game is a weighted potential game (docs/model.md, eq. (12)):
+   symmetric edge weights the game is a weighted potential game (docs/model.md, eq. (17)):
    every accepted reply lowers ``Phi = sum_n J_s,n / beta_n + 1/2 sum_n J_f,n``, so the rounds
    cannot cycle.
 3. **Reply budget**: it starts at :data:`REPLY_START` of the remaining budget per reply and

@@ -1,4 +1,4 @@
-"""``independent``: the "hare" strategy of MODEL.md section 6.
+"""``independent``: the "hare" strategy of docs/model.md section 6.
 
 Every UAV minimises its own single-UAV cost ``J_s`` alone, ignoring the team: no formation term
 and no team-mates (so no separation constraint either). That is ``N`` separate single-UAV SPSO

@@ -1,4 +1,4 @@
-"""``rigid``: the rigid-formation baseline (Chen et al. 2015), MODEL.md section 6.
+"""``rigid``: the rigid-formation baseline (Chen et al. 2015), docs/model.md section 6.
 
 A virtual leader flies from the centroid of the starts to the centroid of the goals (SPSO, one
 swarm); the members keep the reference shape rigidly around it: member ``n``'s free waypoint

@@ -1,4 +1,4 @@
-"""``weighted``: the centralised cooperative baseline of MODEL.md section 6.
+"""``weighted``: the centralised cooperative baseline of docs/model.md section 6.
 
 One optimiser over all paths: ``S = N`` swarms move jointly (joint particle ``i`` = particle
 ``i`` of every swarm = all ``N`` paths) and the single compared objective is the team's summed
