@@ -63,7 +63,8 @@ def plan(
     compile_s = float(prepare()) if callable(prepare) else 0.0
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    out = METHODS[method](scenario, settings, rng, progress, runner=resolved.run_swarm)
+    out = METHODS[method](scenario, settings, rng, progress, runner=resolved.run_swarm,
+                          evaluator=resolved.evaluate)
     wall = time.perf_counter() - t0
     result = assemble(scenario, method, seed, settings, out.waypoints, out.history,
                       out.objective_history, out.evaluations, wall, out.leader_path, resolved.name,

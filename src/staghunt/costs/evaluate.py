@@ -4,6 +4,7 @@ reference engine); violations as in eq. (15)."""
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -69,6 +70,10 @@ def formation_cost(model: CostModel, abs_path: np.ndarray) -> tuple[np.ndarray, 
         deficit = deficit + np.where(seg_hit, np.maximum(limit - seg, 1e-9), 0.0).sum(axis=-1)
     E = np.where(hit, np.inf, E)
     return E.sum(axis=-1), deficit
+
+
+Evaluator = Callable[[CostModel, np.ndarray], Costs]
+"""What scores a batch of plans: :func:`evaluate` (the NumPy reference) or an engine's ``evaluate``."""
 
 
 def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:

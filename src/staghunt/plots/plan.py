@@ -169,6 +169,7 @@ def plot_top_view(result: PlanResult) -> Figure:
     paths = np.asarray(result.paths, dtype=float)
     names = _names(result)
     delta = float(scenario.costs.danger_margin)
+    keep_out = float(scenario.costs.min_clearance) + max(u.radius for u in scenario.team)
 
     fig = Figure(figsize=(10, 8), layout="constrained")
     ax = fig.add_subplot()
@@ -187,14 +188,16 @@ def plot_top_view(result: PlanResult) -> Figure:
         if delta > 0:
             ax.add_patch(Circle((c.x, c.y), c.radius + delta, fill=False, edgecolor=_OBSTACLE_EDGE,
                                 ls="--", lw=1.0, alpha=0.9, zorder=2))
+        ax.add_patch(Circle((c.x, c.y), c.radius + keep_out, fill=False, edgecolor="#b00020",
+                            ls="-", lw=0.9, alpha=0.8, zorder=2))
         if c.name:
             ax.annotate(c.name, (c.x, c.y), ha="center", va="center", fontsize=8.5,
                         color="black", zorder=6)
 
-    for h, t in _edges(result):
+    for h, t in _edges(result):  # the formation's shape at every waypoint index k
         for k in range(paths.shape[1]):
             p, q = paths[h, k], paths[t, k]
-            ax.plot((p[0], q[0]), (p[1], q[1]), color=_LINK, ls=":", lw=0.9, zorder=3)
+            ax.plot((p[0], q[0]), (p[1], q[1]), color=_LINK, ls=":", lw=1.1, zorder=3)
 
     length = np.asarray(result.metrics.path_length, dtype=float)
     for n, name in enumerate(names):
@@ -221,6 +224,8 @@ def plot_top_view(result: PlanResult) -> Figure:
         if delta > 0:
             handles.append(Line2D([], [], color=_OBSTACLE_EDGE, ls="--", lw=1.0,
                                   label=f"danger margin R + Δ (Δ = {delta:g} m)"))
+        handles.append(Line2D([], [], color="#b00020", ls="-", lw=0.9,
+                              label=f"keep-out for UAV centres R + r + c ({keep_out:g} m)"))
     fig.legend(handles=handles, loc="outside right upper", fontsize=_LEGEND,
                title="path length in brackets", title_fontsize=_LEGEND)
 

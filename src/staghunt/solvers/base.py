@@ -8,6 +8,8 @@ from typing import Any, Callable, Protocol
 
 import numpy as np
 
+from staghunt.costs import Evaluator, evaluate
+
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
@@ -30,6 +32,8 @@ class SolverOutput:
 class Method(Protocol):
     """A method: ``(scenario, settings, rng, progress, *, runner) -> SolverOutput``.
 
+    ``evaluator`` (an engine's ``evaluate``, contract of :func:`staghunt.costs.evaluate`) scores
+    batches of given plans, for methods that search outside a swarm (``game``'s polish).
     Every method builds one or more :class:`~staghunt.solvers.problem.SwarmProblem` and hands
     them to ``runner`` (:func:`~staghunt.solvers.swarm.run_swarm`, the NumPy reference, or an
     engine's ``run_swarm``), so every engine runs every method.
@@ -43,6 +47,7 @@ class Method(Protocol):
         progress: Progress | None = None,
         *,
         runner: SwarmRunner = run_swarm,
+        evaluator: Evaluator = evaluate,
     ) -> SolverOutput: ...
 
 

@@ -35,7 +35,7 @@ import math
 
 import numpy as np
 
-from staghunt.costs import CostModel, evaluate, to_absolute
+from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import encode
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
@@ -48,7 +48,10 @@ SEED_SHARE = 0.10
 REPLY_START = 0.01
 """First reply budget (per UAV) as a share of the budget left after the seed."""
 REPLY_PARTICLES = 50
-"""Particles of a reply search (fewer if the run's ``particles`` is smaller)."""
+"""Least particles of a reply search (fewer only if the run's ``particles`` is smaller)."""
+REPLY_ITERATIONS = 300
+"""Iterations a reply search aims at: larger reply budgets get more particles rather than more
+iterations (a swarm's per-iteration overhead is paid once per iteration); 0 = always the least."""
 LOCAL_SHARE = 0.25
 """Share of a reply's particles started near the UAV's current path."""
 LOCAL_SPREAD = 0.05
@@ -83,7 +86,10 @@ class _Rows:
 
 def _reply_shape(evaluations: int, particles: int) -> tuple[int, int]:
     """``(particles, iterations)`` of a reply's swarm search spending about ``evaluations``."""
-    p = max(1, min(particles, REPLY_PARTICLES))
+    p = REPLY_PARTICLES
+    if REPLY_ITERATIONS > 0:
+        p = max(p, evaluations // (REPLY_ITERATIONS + 1))
+    p = max(1, min(particles, p))
     iterations = max(MIN_REPLY_ITERATIONS, evaluations // p - 1)
     return p, iterations
 
@@ -111,7 +117,8 @@ def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
 
 
 def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
-           step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
+           evaluator: Evaluator = evaluate, step: float = POLISH_STEP,
+           min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
     """Local pattern search on UAV ``n``'s free waypoints in the site frame, the others fixed.
 
     The spherical encoding moves every later waypoint with each step, so a swarm refines a
@@ -120,17 +127,19 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     path combining every improving move; the best feasible one that lowers ``J_n`` is taken,
     else ``step`` halves, down to ``min_step`` metres. Returns the ``(N, K, 3)`` plan (``plan``
     itself if nothing improved) and the path evaluations spent (``<= max_evaluations``).
+    ``evaluator`` scores the candidates (an engine's ``evaluate``); the plan's own cost is
+    taken with the same evaluator, so every comparison is made in one arithmetic.
     """
     K = plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
-    current = evaluate(model, plan[None])
+    current = evaluator(model, plan[None])
     if current.total_violation[0] != 0:
         return plan, 0
     best, J = plan, float(current.total[0, n])
     spent = 0
     while step >= min_step and spent + 6 * K + 1 <= max_evaluations:
         cands = np.clip(best[n][None] + step * moves, model.lower, model.upper)
-        Jc = _own_costs(model, best, n, cands)
+        Jc = _own_costs(model, best, n, cands, evaluator)
         spent += len(cands)
         gain = J - Jc  # (6K,)
         if not gain.max() > ACCEPT_TOL * J:
@@ -139,7 +148,7 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
         g = gain.reshape(2, 3 * K)
         direction = np.where(g[0] >= g[1], 1.0, -1.0) * (np.maximum(g[0], g[1]) > 0)
         combined = np.clip(best[n] + step * direction.reshape(K, 3), model.lower, model.upper)
-        Jcomb = _own_costs(model, best, n, combined[None])[0]
+        Jcomb = _own_costs(model, best, n, combined[None], evaluator)[0]
         spent += 1
         i = int(np.argmax(gain))
         new = best.copy()
@@ -148,12 +157,13 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     return best, spent
 
 
-def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray) -> np.ndarray:
+def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray,
+               evaluator: Evaluator) -> np.ndarray:
     """``(Q,)`` ``J_n`` of ``plan`` with UAV ``n``'s path replaced by each of ``paths``
     ``(Q, K, 3)``; ``inf`` where the deviation breaks a hard constraint."""
     team = np.repeat(plan[None], len(paths), axis=0)
     team[:, n] = paths
-    c = evaluate(model, team)
+    c = evaluator(model, team)
     return np.where(c.total_violation == 0, c.total[:, n], np.inf)
 
 
@@ -178,6 +188,7 @@ def solve_game(
     progress: Progress | None = None,
     *,
     runner: SwarmRunner = run_swarm,
+    evaluator: Evaluator = evaluate,
 ) -> SolverOutput:
     model = CostModel.from_scenario(scenario)
     N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
@@ -220,7 +231,7 @@ def solve_game(
             spent += out.path_evaluations
             candidate = plan.copy()
             candidate[n] = out.best_waypoints[n]
-            candidate, used = polish(model, candidate, n, local)
+            candidate, used = polish(model, candidate, n, local, evaluator)
             spent += used
             c = evaluate(model, candidate[None])
             new = c.total[0]

@@ -29,7 +29,7 @@ import dataclasses
 
 import numpy as np
 
-from staghunt.costs import CostModel, evaluate
+from staghunt.costs import CostModel, Evaluator, evaluate
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import team_problem
@@ -81,6 +81,7 @@ def solve_independent(
     progress: Progress | None = None,
     *,
     runner: SwarmRunner = run_swarm,
+    evaluator: Evaluator = evaluate,
 ) -> SolverOutput:
     model = CostModel.from_scenario(scenario)
     N, K = model.n_uavs, settings.waypoints

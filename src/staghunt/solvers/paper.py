@@ -15,7 +15,7 @@ from typing import Literal
 
 import numpy as np
 
-from staghunt.costs import CostModel
+from staghunt.costs import CostModel, Evaluator, evaluate
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.problem import team_problem
@@ -51,5 +51,6 @@ def solve_paper(
     progress: Progress | None = None,
     *,
     runner: SwarmRunner = run_swarm,
+    evaluator: Evaluator = evaluate,
 ) -> SolverOutput:
     return solve_team(scenario, settings, rng, progress, runner, "players")

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from staghunt.costs import CostModel, to_absolute
+from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import decode, search_space
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
@@ -37,6 +37,7 @@ def solve_rigid(
     progress: Progress | None = None,
     *,
     runner: SwarmRunner = run_swarm,
+    evaluator: Evaluator = evaluate,
 ) -> SolverOutput:
     model = CostModel.from_scenario(scenario)
     problem = rigid_problem(model, settings.waypoints, settings.velocity_fraction)

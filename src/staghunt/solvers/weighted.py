@@ -14,6 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from staghunt.costs import Evaluator, evaluate
+
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.base import SolverOutput, register
 from staghunt.solvers.paper import solve_team
@@ -28,5 +30,6 @@ def solve_weighted(
     progress: Progress | None = None,
     *,
     runner: SwarmRunner = run_swarm,
+    evaluator: Evaluator = evaluate,
 ) -> SolverOutput:
     return solve_team(scenario, settings, rng, progress, runner, "sum")
