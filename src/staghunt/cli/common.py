@@ -60,6 +60,13 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
                    help="threads of the numba engine (default: adaptive)")
 
 
+def command(sub: Any, name: str, func: Any, help: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """Register the subcommand ``name`` (handler ``func(args) -> exit code``) on ``sub``."""
+    p = sub.add_parser(name, help=help, **kwargs)
+    p.set_defaults(func=func)
+    return p
+
+
 def add_scenario_argument(p: argparse.ArgumentParser) -> None:
     """The positional ``SCENARIO`` (plan, evaluate, show, compare)."""
     p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
@@ -94,6 +101,14 @@ def add_out_option(p: argparse.ArgumentParser, default: str, metavar: str = "DIR
 
 def add_quiet_option(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
     p.add_argument("--quiet", action="store_true", help=help)
+
+
+def add_run_options(p: argparse.ArgumentParser, out_default: str, quiet_help: str = "no progress on stderr") -> None:
+    """What every planning command takes: the budget, ``--out DIR``, the engine, ``--quiet``."""
+    add_budget_options(p)
+    add_out_option(p, out_default)
+    add_engine_options(p)
+    add_quiet_option(p, quiet_help)
 
 
 def engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:
