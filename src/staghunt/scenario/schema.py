@@ -53,6 +53,15 @@ def _fail(key: str, detail: str) -> PydanticCustomError:
 class _Table(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _none_is_absent(cls, data: Any) -> Any:
+        """A known key whose value is ``None`` counts as absent (plain-data form); an unknown
+        key is still reported, whatever its value."""
+        if isinstance(data, Mapping):
+            return {k: v for k, v in data.items() if v is not None or k not in cls.model_fields}
+        return data
+
 
 # --------------------------------------------------------------------------------------------
 # Tables
@@ -239,9 +248,9 @@ _MESSAGES = {
 
 def plain(value: Any) -> Any:
     """``value`` as plain TOML-like data: NumPy arrays and scalars become lists and Python
-    scalars, tuples lists, and a table key whose value is ``None`` is left out (absent)."""
+    scalars, tuples lists (a key whose value is ``None`` counts as absent: see ``_Table``)."""
     if isinstance(value, Mapping):
-        return {k: plain(v) for k, v in value.items() if v is not None}
+        return {k: plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):
         return [plain(v) for v in value]
     if isinstance(value, np.generic):
