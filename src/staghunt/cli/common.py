@@ -1,13 +1,13 @@
 """What the ``staghunt`` commands share: exit codes, the parser, option types and the option blocks
-used by several commands (scenario, budget, seeds, output directory, engine), error lines, the
+used by several commands (scenario, budget, output directory, engine, quiet), error lines, the
 terminal status line."""
 
 from __future__ import annotations
 
 import argparse
 import math
-import re
 import os
+import re
 import shutil
 import sys
 import time
@@ -93,10 +93,9 @@ def budget_settings(scenario: Any, args: argparse.Namespace) -> Any:
     return settings
 
 
-def add_out_option(p: argparse.ArgumentParser, default: str, metavar: str = "DIR") -> None:
-    """``--out`` (an output directory, or with ``metavar="FILE"`` a file)."""
-    what = "output directory" if metavar == "DIR" else "output file"
-    p.add_argument("--out", metavar=metavar, help=f"{what} (default: {default})")
+def add_out_option(p: argparse.ArgumentParser, default: str) -> None:
+    """``--out DIR``, the output directory."""
+    p.add_argument("--out", metavar="DIR", help=f"output directory (default: {default})")
 
 
 def add_quiet_option(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
