@@ -16,10 +16,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Patch
+from matplotlib.patches import Circle
 
 from staghunt.io.atomic import atomic_file
 from staghunt.plots.common import (
+    _legend_handles,
     _LABEL,
     _LEADER,
     _LEGEND,
@@ -32,9 +33,7 @@ from staghunt.plots.common import (
     _ground_grid,
     _ground_range,
     _leader_heights,
-    _link_handle,
     _names,
-    _start_goal_handles,
     _style_axes,
     _title,
     uav_colour,
@@ -137,12 +136,7 @@ def plot_paths_3d(result: PlanResult) -> Figure:
         ax.text(centre[0], centre[1], paths[:, idx, 2].max() + lift, word, fontsize=10.5,
                 ha="center", va="bottom", weight="bold", zorder=6)
 
-    handles += _start_goal_handles()
-    if _edges(result):
-        handles.append(_link_handle())
-    if scenario.world.cylinders:
-        handles.append(Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, alpha=0.6,
-                             label="obstacle"))
+    handles += _legend_handles(result, "obstacle", alpha=0.6)
     ax.legend(handles=handles, loc="upper left", fontsize=_LEGEND, framealpha=0.9)
 
     ax.set_xlim(b.xmin, b.xmax)
@@ -215,12 +209,8 @@ def plot_top_view(result: PlanResult) -> Figure:
                           label="virtual leader", zorder=4)
         handles.append(lead)
 
-    handles += _start_goal_handles()
-    if _edges(result):
-        handles.append(_link_handle())
+    handles += _legend_handles(result, "obstacle (radius R)", alpha=0.75)
     if scenario.world.cylinders:
-        handles.append(Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, alpha=0.75,
-                             label="obstacle (radius R)"))
         if delta > 0:
             handles.append(Line2D([], [], color=_OBSTACLE_EDGE, ls="--", lw=1.0,
                                   label=f"danger margin R + Δ (Δ = {delta:g} m)"))

@@ -20,6 +20,7 @@ from staghunt.analysis.compare.model import (
     _enc_list,
 )
 from staghunt.analysis.compare.stats import dominance_matrix, dominance_table, summarize
+from staghunt.io.numbers import number_text
 from staghunt.scenario.model import Scenario, SolverSettings
 
 CSV_COLUMNS = (
@@ -129,12 +130,7 @@ def csv_text(report: CompareReport) -> str:
     dom = report.data.get("dominance", {})
 
     def num(v: float) -> str:
-        v = float(v)
-        if math.isnan(v):
-            return ""
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
+        return number_text(v, nan="")
 
     for r in report.records:
         gaps = r.nash_gaps()
@@ -156,12 +152,7 @@ def csv_text(report: CompareReport) -> str:
 
 
 def _g(v: Any, fmt: str = ".4g") -> str:
-    v = _decode(v) if isinstance(v, str) or v is None else float(v)
-    if math.isnan(v):
-        return "-"
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return format(v, fmt)
+    return number_text(_decode(v) if isinstance(v, str) or v is None else v, fmt, nan="-")
 
 
 def _pct(v: Any) -> str:
