@@ -22,7 +22,6 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from staghunt.analysis.certify import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecord
 from staghunt.cli.common import (  # the shared options, exit codes and error lines
     EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options,

@@ -31,17 +31,14 @@ rounds, accepted replies, reply budgets and each round's largest relative gain.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import encode
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.rigid import rigid_problem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
+from staghunt.solvers.swarm import Progress
 
 SEED_SHARE = 0.10
 """Share of the budget spent on the rigid seed."""
@@ -181,15 +178,9 @@ def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], r
 
 
 @register("game", "stag-hunt game solved to an equilibrium: rigid seed, then best-response rounds (default)")
-def solve_game(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-    evaluator: Evaluator = evaluate,
-) -> SolverOutput:
+def solve_game(run: MethodRun) -> SolverOutput:
+    scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
+    runner, evaluator = run.runner, run.evaluator
     model = CostModel.from_scenario(scenario)
     N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
     budget = P * (I + 1) * N

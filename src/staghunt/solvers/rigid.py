@@ -12,12 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
+from staghunt.costs import CostModel, to_absolute
 from staghunt.encoding import decode, search_space
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
 class FormationTooLarge(ValueError):
@@ -30,15 +28,8 @@ def formation_offsets(model: CostModel) -> np.ndarray:
 
 
 @register("rigid", "rigid formation: one virtual leader, members at fixed offsets (baseline)")
-def solve_rigid(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-    evaluator: Evaluator = evaluate,
-) -> SolverOutput:
+def solve_rigid(run: MethodRun) -> SolverOutput:
+    scenario, settings, rng, progress, runner = run.scenario, run.settings, run.rng, run.progress, run.runner
     model = CostModel.from_scenario(scenario)
     problem = rigid_problem(model, settings.waypoints, settings.velocity_fraction)
     out = runner(problem, settings, rng, progress)
