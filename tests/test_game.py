@@ -28,9 +28,9 @@ def model1(scenario1):
 
 @pytest.fixture(scope="module")
 def reduced(scenario1):
-    """A reduced, fast case: scenario 1 at 300 particles x 150 iterations, seed 1, the compiled
+    """A reduced, fast case: scenario 1 at 500 particles x 300 iterations, seed 1, the compiled
     engine; the default method and the rigid baseline on the same seed and budget."""
-    settings = scenario1.solver.with_(particles=300, iterations=150)
+    settings = scenario1.solver.with_(particles=500, iterations=300)
     cert = CertifyOptions(particles=400, iterations=200)
     game = plan(scenario1, "game", 1, settings, engine="numba", certify=cert)
     rigid = plan(scenario1, "rigid", 1, settings, engine="numba", certify=cert)

@@ -207,10 +207,10 @@ def solve_game(run: MethodRun) -> SolverOutput:
     converged = False
     while not converged:
         remaining = budget - spent
-        per_reply = min(reply_evals, remaining // N)
+        per_reply = min(reply_evals, remaining // N - 1)
         local = int(POLISH_SHARE * per_reply)
         p_r, i_r = _reply_shape(per_reply - local, P)
-        if N * (p_r * (i_r + 1) + local) > remaining:
+        if N * (p_r * (i_r + 1) + local + 1) > remaining:
             break
         reply_settings = settings.with_(particles=p_r, iterations=i_r)
         gains = np.zeros(N)
@@ -223,8 +223,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
             candidate = plan.copy()
             candidate[n] = out.best_waypoints[n]
             candidate, used = polish(model, candidate, n, local, evaluator)
-            spent += used
-            c = evaluate(model, candidate[None])
+            c = evaluate(model, candidate[None])  # the reply judged by the reference: 1 more path
+            spent += used + 1
             new = c.total[0]
             if c.total_violation[0] == 0 and new[n] < J[n] * (1.0 - ACCEPT_TOL):
                 gains[n] = (J[n] - new[n]) / J[n]
