@@ -46,7 +46,7 @@ REPLY_START = 0.01
 """First reply budget (per UAV) as a share of the budget left after the seed."""
 REPLY_PARTICLES = 50
 """Least particles of a reply search (fewer only if the run's ``particles`` is smaller)."""
-REPLY_ITERATIONS = 300
+REPLY_ITERATIONS = 100
 """Iterations a reply search aims at: larger reply budgets get more particles rather than more
 iterations (a swarm's per-iteration overhead is paid once per iteration); 0 = always the least."""
 LOCAL_SHARE = 0.25
