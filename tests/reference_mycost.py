@@ -1,4 +1,4 @@
-"""An independent scalar transcription of the SPSO reference's ``MyCost`` (MODEL.md section 4).
+"""An independent scalar transcription of the SPSO reference's ``MyCost`` (docs/model.md eq. (2)).
 
 One path at a time, plain loops and the ``math`` module, 1-based MATLAB indices kept where the
 reference uses them. Used by ``test_reference.py`` to check the batched engine.

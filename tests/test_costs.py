@@ -1,4 +1,4 @@
-"""Hand-computed values for every branch of every single-UAV cost term (MODEL.md s.4) and J_n."""
+"""Hand-computed values for every branch of every single-UAV cost term (docs/model.md eq. (2)) and J_n."""
 
 from __future__ import annotations
 

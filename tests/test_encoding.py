@@ -1,4 +1,4 @@
-"""Spherical path encoding (MODEL.md s.3) and the PSO operators."""
+"""Spherical path encoding (docs/model.md eqs. (13), (14)) and the PSO operators."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The batched J_s equals a scalar transcription of the SPSO reference's MyCost (MODEL.md s.4)."""
+"""The batched J_s equals a scalar transcription of the SPSO reference's MyCost (docs/model.md eq. (2))."""
 
 from __future__ import annotations
 

@@ -60,3 +60,15 @@ def test_schema_rejects(schema: dict[str, Any], path: tuple[Any, ...], value: An
     target[path[-1]] = value
     with pytest.raises(jsonschema.ValidationError):
         jsonschema.Draft202012Validator(schema).validate(data)
+
+
+def test_none_is_absent_but_unknown_keys_are_not() -> None:
+    from staghunt.scenario import ScenarioError, load_scenario, scenario_from_dict, scenario_to_dict
+
+    data = scenario_to_dict(load_scenario("scenario1"))
+    data["costs"]["desired_height"] = None  # absent: the middle of the height band
+    data["origin"] = None
+    assert scenario_from_dict(data, name="x").origin is None
+    data["colour"] = None
+    with pytest.raises(ScenarioError, match="colour: unknown key"):
+        scenario_from_dict(data, name="x")

@@ -1,9 +1,13 @@
-"""staghunt: cooperative multi-UAV path planning as a stag hunt game (game-based SPSO)."""
+"""staghunt: cooperative multi-UAV path planning as a stag hunt game, solved to certified equilibria."""
 
 from staghunt.api import plan
 from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, ScenarioError, load_scenario
+from staghunt.solvers.response import Certificate, CertifyOptions
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
-__all__ = ["PlanResult", "Scenario", "ScenarioError", "Status", "__version__", "load_scenario", "plan"]
+__all__ = [
+    "Certificate", "CertifyOptions", "PlanResult", "Scenario", "ScenarioError", "Status", "__version__",
+    "load_scenario", "plan",
+]

@@ -18,6 +18,7 @@ from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.scenario.model import check_settings
 from staghunt.solvers import METHODS
+from staghunt.solvers.base import MethodRun
 from staghunt.solvers.response import CertifyOptions, certify_plan
 from staghunt.solvers.swarm import Progress
 
@@ -68,7 +69,8 @@ def plan(
     compile_s = float(prepare()) if callable(prepare) else 0.0
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
-    out = METHODS[method](scenario, settings, rng, progress, runner=resolved.run_swarm)
+    out = METHODS[method](MethodRun(scenario, settings, rng, progress, resolved.run_swarm,
+                                    resolved.evaluate))
     wall = time.perf_counter() - t0
     result = assemble(scenario, method, seed, settings, out.waypoints, out.history,
                       out.objective_history, out.evaluations, wall, out.leader_path, resolved.name,

@@ -1,4 +1,4 @@
-"""Spherical-vector path encoding of the SPSO reference (MODEL.md section 3).
+"""Spherical-vector path encoding of the SPSO reference (docs/model.md eqs. (13), (14)).
 
 A particle holds, per UAV and free waypoint, ``(rho, psi, phi)``: step length, elevation and
 azimuth (from the x axis). Shapes: ``P`` particles, ``N`` UAVs (or swarms), ``K`` free waypoints.
@@ -34,7 +34,7 @@ class SearchSpace:
 def search_space(
     starts: np.ndarray, goals: np.ndarray, waypoints: int, velocity_fraction: float = 0.5
 ) -> SearchSpace:
-    """Ranges of MODEL.md s.3 for ``(N, 3)`` starts and goals (``(x, y, h)``).
+    """Ranges of docs/model.md eq. (14) for ``(N, 3)`` starts and goals (``(x, y, h)``).
 
     ``rho in [0, 2 |G - S| / K]``, ``psi in [-pi/4, pi/4]``, ``phi in phi0 +- pi/4`` with
     ``phi0 = atan2(Gy - Sy, Gx - Sx)``; velocity limit ``velocity_fraction * (max - min)``.

@@ -1,44 +1,7 @@
-"""Equilibrium certificates of result files, and their reports.
+"""Equilibrium certificates of result files, and their reports (table, JSON).
 
-The search itself lives in :mod:`staghunt.solvers.response` (re-exported here). From there:
-
-
-
-A team plan ``X = (X_1 .. X_N)`` is a Nash equilibrium of the game of MODEL.md section 5 when
-no UAV can lower its own cost ``J_n(X_n, X_-n)`` by changing only its own path. For every UAV
-``n`` this module fixes the others' paths, re-optimises ``X_n`` alone on ``J_n`` with
-single-player SPSO (one swarm, :func:`staghunt.solvers.swarm.run_swarm`), seeded, with a given
-budget and warm-started from the current path (particle 0 is the encoded current path), and
-reports the **Nash gap**
-
-    ``gap_n = J_n(X) - J_n(best response found)``  (absolute, >= 0), and ``gap_n / J_n(X)``.
-
-Since the current path is one of the particles and bests only improve, the best found is never
-worse than the current path, so ``gap_n >= 0``. A plan whose relative gaps are all
-``<= epsilon`` (default :data:`DEFAULT_EPSILON` = 1 %) is reported as an epsilon-equilibrium;
-otherwise the UAV with the largest gap is named with what it would gain.
-
-What the certificate is and is not:
-
-- The search is a heuristic, so a gap is a *lower bound* on the true Nash gap: "no deviation
-  better than ``epsilon`` was found with this budget", not a proof. More particles and
-  iterations make it stronger.
-- The deviation is judged with the feasibility-first rule of
-  :mod:`staghunt.solvers.dominance`: a deviation that breaks a hard constraint (obstacle, ground,
-  separation along segments) never beats a feasible path.
-- An infeasible plan gets no certificate: its gaps are reported as infinite
-  (``status = "infeasible"``), because a UAV with an infinite cost gains an unbounded amount by
-  any feasible deviation, and the others' costs are not comparable while the team violates a
-  constraint.
-- The warm start is the current path encoded in the spherical search space
-  (:func:`staghunt.encoding.encode`). If the path is not representable there (a step longer
-  than ``2 |G - S| / K``, steeper than 45 degrees, or more than 45 degrees off the start-goal
-  direction), encoding clamps it; ``roundtrip_error`` reports how far the decoded warm start
-  lies from the current path (metres), and the gap is still measured against the current path
-  itself (and floored at 0).
-
-Randomness: UAV ``n`` is searched with ``numpy.random.default_rng([seed, n])``, so the same plan,
-budget and seed give the same certificate.
+The search itself, what a certificate is and is not, lives in :mod:`staghunt.solvers.response`
+(docs/model.md section 7); :func:`certify_plan` here runs it on a chosen engine.
 """
 
 from __future__ import annotations
@@ -56,6 +19,8 @@ from staghunt.solvers.response import (
     DEFAULT_PARTICLES,
     Certificate,
     UAVGap,
+)
+from staghunt.solvers.response import (
     certify_plan as _certify_plan,
 )
 

@@ -1,4 +1,4 @@
-"""The paper's Fig. 8 numbers next to ours (MODEL.md section 6).
+"""The paper's Fig. 8 numbers next to ours (docs/model.md section 6).
 
 The paper reports, for Scenario 2 at 2000 particles x 1500 iterations and one run, the natural
 logarithm of the converged costs: 11.6, 9.7 and 10.0 for UAV1..UAV3 of the game, against about

@@ -22,43 +22,23 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from staghunt.analysis.certify import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecord
-from staghunt.cli.common import (
-    EXIT_INTERRUPTED,
-    EXIT_NEGATIVE,
-    EXIT_OK,
-    PROG,
-    StatusLine,
-    add_budget_options,
-    add_certify_options,
-    add_engine_options,
-    add_out_option,
-    add_quiet_option,
-    add_scenario_argument,
-    budget_settings,
-    certify_options,
-    check_out_dir,
-    check_path_lengths,
-    engine_kwargs,
-    error,
-    epsilon_value,
-    int_at_least,
-    one_line,
-    os_reason,
-    path_argument,
-    safe_name,
-    say,
+from staghunt.cli.common import (  # the shared options, exit codes and error lines
+    EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options,
+    add_engine_options, add_quiet_option, add_run_options, add_scenario_argument, budget_settings,
+    certify_options, check_out_dir, check_path_lengths, command, engine_kwargs, error, int_at_least,
+    one_line, os_reason, path_argument, safe_name, say,
 )
+from staghunt.io.numbers import number_text
 
 
 
 
 def add_commands(subparsers: Any) -> None:
     """Register ``compare`` and ``certify`` on ``subparsers`` (from ``add_subparsers``)."""
-    p = subparsers.add_parser(
-        "compare",
-        help="run every method on every seed; table, dominance, Nash gaps, figure",
+    p = command(
+        subparsers, "compare", cmd_compare,
+        "run every method on every seed; table, dominance, Nash gaps, figure",
         description="Plan SCENARIO with every method on every seed with the same budget, re-score "
         "every plan with the same J_n, test whether the game allocation Pareto-dominates each "
         "other method's (per seed), certify every plan (Nash gaps), and put the paper's Fig. 8 "
@@ -72,17 +52,12 @@ def add_commands(subparsers: Any) -> None:
     p.add_argument("--methods", metavar="LIST", default=",".join(DEFAULT_METHODS),
                    help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)})")
     p.add_argument("--seeds", metavar="SEEDS", default="1-10", help="seeds, e.g. 1-10, 1,4,7 or 1-3,8 (default: 1-10)")
-    add_budget_options(p)
-    add_out_option(p, "runs/<scenario>-compare")
-    add_certify_options(p, "the equilibrium certificates")
-    add_engine_options(p)
+    add_run_options(p, "runs/<scenario>-compare")
+    add_certificate_options(p, "certify-", skip="the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
-    add_quiet_option(p)
-    p.set_defaults(func=cmd_compare)
 
-    p = subparsers.add_parser(
-        "certify",
-        help="equilibrium certificate of a plan: each UAV's Nash gap",
+    p = command(
+        subparsers, "certify", cmd_certify, "equilibrium certificate of a plan: each UAV's Nash gap",
         description="For every UAV of the plan in RESULT.json, fix the others' paths and "
         "re-optimise its own path on its own J_n (single-player SPSO, warm-started from its "
         "current path, seeded). Its Nash gap is the best unilateral improvement found, absolute "
@@ -93,17 +68,11 @@ def add_commands(subparsers: Any) -> None:
         "infeasible), 2 bad input, 130 interrupted.",
     )
     p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
-    p.add_argument("--particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
-                   help=f"particles of each UAV's search (default: {DEFAULT_PARTICLES})")
-    p.add_argument("--iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
-                   help=f"iterations of each UAV's search (default: {DEFAULT_ITERATIONS})")
-    p.add_argument("--epsilon", type=epsilon_value, metavar="EPS", default=DEFAULT_EPSILON,
-                   help=f"relative tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
+    add_certificate_options(p, "")
     p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
     p.add_argument("--out", metavar="FILE", type=path_argument, help="also write the certificate as JSON to FILE")
     add_engine_options(p)
     add_quiet_option(p)
-    p.set_defaults(func=cmd_certify)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -112,8 +81,7 @@ def add_commands(subparsers: Any) -> None:
 
 
 def _g(v: float) -> str:
-    v = float(v)
-    return ("inf" if v > 0 else "-inf") if math.isinf(v) else f"{v:.4g}"
+    return number_text(v, ".4g")
 
 
 class _CompareProgress(CompareListener):

@@ -1,13 +1,13 @@
 """What the ``staghunt`` commands share: exit codes, the parser, option types and the option blocks
-used by several commands (scenario, budget, seeds, output directory, engine), error lines, the
+used by several commands (scenario, budget, output directory, engine, quiet), error lines, the
 terminal status line."""
 
 from __future__ import annotations
 
 import argparse
 import math
-import re
 import os
+import re
 import shutil
 import sys
 import time
@@ -68,6 +68,13 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
                    help="threads of the numba engine (default: adaptive)")
 
 
+def command(sub: Any, name: str, func: Any, help: str, **kwargs: Any) -> argparse.ArgumentParser:
+    """Register the subcommand ``name`` (handler ``func(args) -> exit code``) on ``sub``."""
+    p = sub.add_parser(name, help=help, **kwargs)
+    p.set_defaults(func=func)
+    return p
+
+
 def add_scenario_argument(p: argparse.ArgumentParser) -> None:
     """The positional ``SCENARIO`` (plan, evaluate, show, compare)."""
     p.add_argument("scenario", metavar="SCENARIO", help="built-in name or path to a .toml file")
@@ -109,22 +116,25 @@ def epsilon_value(text: str) -> float:
 epsilon_value.__name__ = "epsilon"
 
 
-def add_certify_options(p: argparse.ArgumentParser, what: str) -> None:
-    """``--certify-particles``, ``--certify-iterations``, ``--epsilon``, ``--no-certify`` (plan, compare)."""
+def add_certificate_options(p: argparse.ArgumentParser, prefix: str, skip: str | None = None) -> None:
+    """The certificate's budget and tolerance: ``--{prefix}particles``, ``--{prefix}iterations``
+    (each UAV's best-response search) and ``--epsilon``; with ``skip`` (what is skipped) also
+    ``--no-certify`` (plan, compare: prefix ``certify-``; certify: no prefix)."""
     from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 
-    p.add_argument("--certify-particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
-                   help=f"best-response search particles per UAV (default: {DEFAULT_PARTICLES})")
-    p.add_argument("--certify-iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
-                   help=f"best-response search iterations per UAV (default: {DEFAULT_ITERATIONS})")
+    p.add_argument(f"--{prefix}particles", type=int_at_least(1), metavar="N", default=DEFAULT_PARTICLES,
+                   help=f"particles of each UAV's best-response search (default: {DEFAULT_PARTICLES})")
+    p.add_argument(f"--{prefix}iterations", type=int_at_least(0), metavar="N", default=DEFAULT_ITERATIONS,
+                   help=f"iterations of each UAV's best-response search (default: {DEFAULT_ITERATIONS})")
     p.add_argument("--epsilon", type=epsilon_value, metavar="EPS", default=DEFAULT_EPSILON,
-                   help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g})")
-    p.add_argument("--no-certify", action="store_true", help=f"skip {what}")
+                   help=f"relative Nash-gap tolerance, e.g. 0.01 or 1%% (default: {DEFAULT_EPSILON:g} = 1%%)")
+    if skip is not None:
+        p.add_argument("--no-certify", action="store_true", help=f"skip {skip}")
 
 
 def certify_options(args: argparse.Namespace) -> Any:
-    """The :class:`~staghunt.solvers.response.CertifyOptions` of :func:`add_certify_options`'s
-    options, or ``None`` with ``--no-certify``."""
+    """The :class:`~staghunt.solvers.response.CertifyOptions` of the ``certify-`` options of
+    :func:`add_certificate_options`, or ``None`` with ``--no-certify``."""
     from staghunt.solvers.response import CertifyOptions
 
     if args.no_certify:
@@ -132,14 +142,21 @@ def certify_options(args: argparse.Namespace) -> Any:
     return CertifyOptions(args.certify_particles, args.certify_iterations, args.epsilon)
 
 
-def add_out_option(p: argparse.ArgumentParser, default: str, metavar: str = "DIR") -> None:
-    """``--out`` (an output directory, or with ``metavar="FILE"`` a file)."""
-    what = "output directory" if metavar == "DIR" else "output file"
-    p.add_argument("--out", metavar=metavar, type=path_argument, help=f"{what} (default: {default})")
+def add_out_option(p: argparse.ArgumentParser, default: str) -> None:
+    """``--out DIR``, the output directory (not empty: :func:`path_argument`)."""
+    p.add_argument("--out", metavar="DIR", type=path_argument, help=f"output directory (default: {default})")
 
 
 def add_quiet_option(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
     p.add_argument("--quiet", action="store_true", help=help)
+
+
+def add_run_options(p: argparse.ArgumentParser, out_default: str, quiet_help: str = "no progress on stderr") -> None:
+    """What every planning command takes: the budget, ``--out DIR``, the engine, ``--quiet``."""
+    add_budget_options(p)
+    add_out_option(p, out_default)
+    add_engine_options(p)
+    add_quiet_option(p, quiet_help)
 
 
 def engine_kwargs(args: argparse.Namespace) -> dict[str, Any]:

@@ -16,37 +16,23 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from staghunt.cli.common import (
-    EXIT_NEGATIVE,
-    EXIT_OK,
-    PROG,
-    StatusLine,
-    add_budget_options,
-    add_certify_options,
-    add_engine_options,
-    add_out_option,
-    add_quiet_option,
-    add_scenario_argument,
-    budget_settings,
-    certify_options,
-    check_out_dir,
-    engine_kwargs,
-    int_at_least,
-    one_line,
-    os_reason,
+from staghunt.cli.common import (  # the shared options, exit codes and error lines
+    EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options, add_run_options,
+    add_scenario_argument, budget_settings, certify_options, check_out_dir, command, engine_kwargs,
+    int_at_least, one_line, os_reason,
     safe_name,
     say,
 )
 from staghunt.inputs import clip
+from staghunt.io.numbers import number_text
 
 
 def add_commands(sub: Any) -> None:
     """Register ``plan`` and ``evaluate`` on ``sub`` (from ``add_subparsers``)."""
     from staghunt.solvers import METHODS
 
-    p = sub.add_parser(
-        "plan",
-        help="plan paths for a scenario and write DIR/result.json",
+    p = command(
+        sub, "plan", cmd_plan, "plan paths for a scenario and write DIR/result.json",
         description="Plan paths for the team of SCENARIO, then certify the plan: every UAV's "
         "Nash gap by a unilateral best-response search (the verdict is printed and stored in "
         "result.json; 'staghunt certify' re-checks with a larger budget). Budget options default "
@@ -60,28 +46,25 @@ def add_commands(sub: Any) -> None:
     add_scenario_argument(p)
     p.add_argument("--method", choices=list(METHODS), default="game", help="planning method (default: game)")
     p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default: 0)")
-    add_budget_options(p)
-    add_certify_options(p, "the equilibrium certificate that ends the run")
-    add_out_option(p, "runs/<scenario>-<method>-s<seed>")
-    add_engine_options(p)
+    add_run_options(p, "runs/<scenario>-<method>-s<seed>",
+                    "no progress and no summary table; print only the status and where files went")
+    add_certificate_options(p, "certify-", skip="the equilibrium certificate that ends the run")
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
     p.add_argument("--dry-run", action="store_true",
                    help="check the inputs and print the budget and the memory the run needs "
                    "(estimate), without planning or writing anything")
-    add_quiet_option(p, "no progress and no summary table; print only the status and where files went")
-    p.set_defaults(func=cmd_plan)
 
-    p = sub.add_parser(
-        "evaluate",
-        help="cost and check given paths (PATHS.json) in a scenario",
+    p = command(
+        sub, "evaluate", cmd_evaluate, "cost and check given paths (PATHS.json) in a scenario",
         description="Print the costs and constraint checks of the paths in PATHS.json as JSON. "
         'PATHS.json: {"uavs": [{"name": optional, "waypoints": [[x, y, h], ...]} or '
-        '{"path": [[x, y, h], ...] from start to goal}, ...]}, h above ground.',
+        '{"path": [[x, y, h], ...] from start to goal}, ...]}, h above ground. A result.json '
+        "written by 'staghunt plan' is accepted as PATHS.json too (its paths are evaluated in "
+        "SCENARIO). A waypoint outside the site box makes the paths infeasible.",
         epilog="Exit codes: 0 feasible, 3 infeasible, 2 bad input.",
     )
     add_scenario_argument(p)
     p.add_argument("paths", metavar="PATHS.json", help="the paths to evaluate")
-    p.set_defaults(func=cmd_evaluate)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -202,12 +185,7 @@ def _write_figures(result: Any, out_dir: Path) -> list[Path]:
 
 
 def _g(v: float) -> str:
-    v = float(v)
-    if math.isnan(v):
-        return "nan"
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return f"{v:.6g}"
+    return number_text(v, ".6g")
 
 
 def _ln(v: float) -> str:

@@ -6,29 +6,18 @@ import argparse
 import json
 from typing import Any
 
-from staghunt.cli.common import EXIT_OK, add_scenario_argument
+from staghunt.cli.common import EXIT_OK, add_scenario_argument, command
 
 
 def add_commands(sub: Any) -> None:
-    """Register ``scenarios``, ``show`` and ``methods`` on ``sub`` (from ``add_subparsers``)."""
-    p = sub.add_parser("scenarios", help="list the built-in scenarios")
-    p.set_defaults(func=cmd_scenarios)
-
-    p = sub.add_parser("show", help="print a validated scenario as JSON")
-    add_scenario_argument(p)
-    p.set_defaults(func=cmd_show)
-
-    p = sub.add_parser("methods", help="list the planning methods")
-    p.set_defaults(func=cmd_methods)
-
-    p = sub.add_parser(
-        "schema",
-        help="print the JSON Schema of the scenario file format",
-        description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
-        "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
-        "TOML support at it (see docs/scenario-format.md).",
-    )
-    p.set_defaults(func=cmd_schema)
+    """Register ``scenarios``, ``show``, ``methods`` and ``schema`` on ``sub`` (from ``add_subparsers``)."""
+    command(sub, "scenarios", cmd_scenarios, "list the built-in scenarios")
+    add_scenario_argument(command(sub, "show", cmd_show, "print a validated scenario as JSON"))
+    command(sub, "methods", cmd_methods, "list the planning methods")
+    command(sub, "schema", cmd_schema, "print the JSON Schema of the scenario file format",
+            description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
+            "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
+            "TOML support at it (see docs/scenario-format.md).")
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:

@@ -1,8 +1,10 @@
-"""``J_n = J_s + beta_n J_f`` for whole populations of team paths (NumPy reference engine)."""
+"""``J_n = J_s + beta_n J_f`` (docs/model.md eq. (4)) for whole populations of team paths (NumPy
+reference engine); violations as in eq. (15)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -51,7 +53,7 @@ def formation_cost(model: CostModel, abs_path: np.ndarray) -> tuple[np.ndarray, 
     """``J_f`` ``(P, N)`` and separation deficit ``(P, N)`` for absolute full paths ``(P, N, K+2, 3)``.
 
     ``E_n(k)`` is ``inf`` at a free waypoint where UAV ``n``'s nearest team-mate is within
-    ``d_s + 2 r_n`` (eq. 6). With ``continuous_separation``, ``J_f`` is also ``inf`` when that
+    ``d_s + 2 r_n`` (docs/model.md eq. (6a)). With ``continuous_separation`` (eq. (6b)), ``J_f`` is also ``inf`` when that
     happens anywhere along a segment (closest approach of the synchronised motion).
     """
     wp = abs_path[:, :, 1:-1]
@@ -68,6 +70,10 @@ def formation_cost(model: CostModel, abs_path: np.ndarray) -> tuple[np.ndarray, 
         deficit = deficit + np.where(seg_hit, np.maximum(limit - seg, 1e-9), 0.0).sum(axis=-1)
     E = np.where(hit, np.inf, E)
     return E.sum(axis=-1), deficit
+
+
+Evaluator = Callable[[CostModel, np.ndarray], Costs]
+"""What scores a batch of plans: :func:`evaluate` (the NumPy reference) or an engine's ``evaluate``."""
 
 
 def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:

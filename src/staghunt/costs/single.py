@@ -1,4 +1,5 @@
-"""The five single-UAV cost terms of paper eq. 2, as the SPSO reference computes them (MODEL.md s.4).
+"""The five single-UAV cost terms of paper eq. 2, as the SPSO reference computes them
+(docs/model.md eqs. (2a)-(2e)).
 
 Every function takes whole populations. Shapes: ``P`` particles, ``N`` UAVs, ``K`` free
 waypoints, ``S = K + 1`` segments, ``T`` cylinders. A full path has ``K + 2`` points.

@@ -12,14 +12,12 @@ Every method is a :class:`~staghunt.solvers.problem.SwarmProblem` run by an engi
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Callable, Protocol, runtime_checkable
 
 import numpy as np
 
-from staghunt.costs import CostModel, Costs
-from staghunt.scenario.model import SolverSettings
-from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress, SwarmOutcome
+from staghunt.costs import CostModel, Costs, evaluate
+from staghunt.solvers.swarm import SwarmRunner, run_swarm
 
 ENGINE_NAMES = ("auto", "numpy", "numba")
 
@@ -30,40 +28,17 @@ class Engine(Protocol):
     and ``evaluate`` (contract of :func:`staghunt.costs.evaluate`)."""
 
     name: str
-
-    def run_swarm(
-        self,
-        problem: SwarmProblem,
-        settings: SolverSettings,
-        rng: np.random.Generator,
-        progress: Progress | None = None,
-        initial: np.ndarray | None = None,
-    ) -> SwarmOutcome: ...
-
-    def evaluate(self, model: CostModel, waypoints: np.ndarray) -> Costs: ...
+    run_swarm: SwarmRunner
+    evaluate: Callable[[CostModel, np.ndarray], Costs]
 
 
 class NumpyEngine:
-    """The NumPy reference engine (``threads`` does not apply)."""
+    """The NumPy reference engine (``threads`` does not apply): :func:`staghunt.solvers.swarm.run_swarm`
+    and :func:`staghunt.costs.evaluate` themselves."""
 
     name = "numpy"
-
-    def run_swarm(
-        self,
-        problem: SwarmProblem,
-        settings: SolverSettings,
-        rng: np.random.Generator,
-        progress: Progress | None = None,
-        initial: np.ndarray | None = None,
-    ) -> SwarmOutcome:
-        from staghunt.solvers.swarm import run_swarm
-
-        return run_swarm(problem, settings, rng, progress, initial)
-
-    def evaluate(self, model: CostModel, waypoints: np.ndarray) -> Costs:
-        from staghunt.costs import evaluate
-
-        return evaluate(model, waypoints)
+    run_swarm = staticmethod(run_swarm)
+    evaluate = staticmethod(evaluate)
 
     def __repr__(self) -> str:
         return "NumpyEngine()"

@@ -16,14 +16,16 @@ to the same cache), which roughly halves the wait on a 2-core machine.
 
 from __future__ import annotations
 
+import functools
 import logging
 import os
 import subprocess
 import sys
 import threading
 import time
+from contextlib import contextmanager
 from dataclasses import replace
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Iterator
 
 import numpy as np
 
@@ -88,6 +90,26 @@ class Scratch:
         self.bits2 = np.zeros(B, dtype=np.uint64)
 
 
+_POOL: dict[tuple[int, int, int, int], list[Scratch]] = {}
+_POOL_LOCK = threading.Lock()
+_POOL_KEEP = 8
+"""Idle buffers kept per shape: many short runs (``game``'s replies, the polish's evaluations)
+would otherwise spend more time allocating buffers than computing."""
+
+
+def _borrow(shape: tuple[int, int, int, int], count: int) -> list[Scratch]:
+    with _POOL_LOCK:
+        free = _POOL.setdefault(shape, [])
+        taken = [free.pop() for _ in range(min(count, len(free)))]
+    return taken + [Scratch(*shape) for _ in range(count - len(taken))]
+
+
+def _give_back(shape: tuple[int, int, int, int], scratch: list[Scratch]) -> None:
+    with _POOL_LOCK:
+        free = _POOL.setdefault(shape, [])
+        free.extend(scratch[: max(0, _POOL_KEEP - len(free))])
+
+
 class _Pass:
     """The arrays of one run of ``P`` particles (or, with ``wp`` ``(Q, N, K, 3)``, one
     evaluation of ``Q`` allocations) and the two kernel calls per block."""
@@ -118,8 +140,15 @@ class _Pass:
         self.mode, self.it, self.key, self.inertia = kn.MODE_INIT, 0, np.uint64(0), 0.0
 
     def ensure_scratch(self, threads: int) -> None:
-        while len(self.scratch) < threads:
-            self.scratch.append(Scratch(self.N, self.K, self.S, self.B))
+        """Borrow block buffers for ``threads`` threads from the pool (see :meth:`release`)."""
+        if len(self.scratch) < threads:
+            self.scratch += _borrow((self.N, self.K, self.S, self.B), threads - len(self.scratch))
+
+    def release(self) -> None:
+        """Give the block buffers back to the pool: the next run of the same shape reuses them
+        (every kernel writes a buffer before it reads it, within each block)."""
+        _give_back((self.N, self.K, self.S, self.B), self.scratch)
+        self.scratch = []
 
     def block(self, q0: int, nb: int, worker: int, entries: Iterable[str] = ("uav_pass", "team_pass")) -> None:
         """Run the kernel entries on particles ``q0 .. q0+nb`` (``nb <= B``) with ``worker``'s scratch."""
@@ -262,10 +291,13 @@ def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
     P, N, K = wp.shape[0], wp.shape[1], wp.shape[2]
     sa = SwarmArrays(sw=np.zeros((0, 22)), member=np.zeros(N, dtype=np.int64), offsets=np.zeros((N, 3)),
                      fixed=np.zeros((N, K, 3)), players=np.zeros(1, dtype=np.int64))
-    run = _Pass(model_arrays(model), sa, N, K, 0, 1, 0, wp=wp)
+    run = _Pass(_model_arrays_cached(model), sa, N, K, 0, 1, 0, wp=wp)
     run.mode = kn.MODE_EVALUATE
     run.ensure_scratch(1)
-    run.work(0, P, 0)
+    try:
+        run.work(0, P, 0)
+    finally:
+        run.release()
     res = run.res_out
     return Costs(terms=run.terms_out, single=res[:, 1].copy(), formation=res[:, 0].copy(),
                  total=res[:, 2].copy(), violation=run.vio_out)
@@ -297,7 +329,7 @@ def _run(
     history = np.empty((iterations + 1, C))
     rhistory = np.empty((iterations + 1, N))
     hviol = np.empty(iterations + 1)
-    with BlockRunner(control.max_threads) as runner:
+    with BlockRunner(control.max_threads) as runner, _releasing(run):
         runner.run(run.work, P, control.max_threads, run.B)
         g = kn.select_global(run.cost, run.viol, gcost, 0.0, False)
         run.gbest[...] = run.X[..., g]
@@ -335,6 +367,22 @@ def _run(
     )
 
 
+@functools.lru_cache(maxsize=16)
+def _model_arrays_cached(model: CostModel) -> ModelArrays:
+    """:func:`model_arrays` of a model evaluated again and again (a frozen :class:`CostModel`
+    hashes by identity; its arrays are read-only)."""
+    return model_arrays(model)
+
+
+@contextmanager
+def _releasing(run: _Pass) -> Iterator[_Pass]:
+    """Give ``run``'s block buffers back to the pool when the run ends, however it ends."""
+    try:
+        yield run
+    finally:
+        run.release()
+
+
 def _fixed_constants(problem: SwarmProblem) -> np.ndarray:
     """``(N * SOLO_STRIDE,)`` per UAV: the unweighted ``J_s`` terms and obstacle and ground
     violations of its ``fixed`` path, computed by the kernels themselves (so a fixed UAV's
@@ -349,9 +397,12 @@ def _decode_one(ma: ModelArrays, sa: SwarmArrays, N: int, K: int, S: int, C: int
     itself (its trigonometry rounds differently from NumPy's)."""
     one = _Pass(ma, sa, N, K, S, C, 1, initial=np.ascontiguousarray(particle[None]))
     one.ensure_scratch(1)
-    one.block(0, 1, 0, ("uav_pass",))
-    w = one.scratch[0]
-    return np.stack([w.px[:, 1:K + 1, 0], w.py[:, 1:K + 1, 0], w.ph[:, :, 0]], axis=-1).copy()
+    try:
+        one.block(0, 1, 0, ("uav_pass",))
+        w = one.scratch[0]
+        return np.stack([w.px[:, 1:K + 1, 0], w.py[:, 1:K + 1, 0], w.ph[:, :, 0]], axis=-1).copy()
+    finally:
+        one.release()
 
 
 class NumbaEngine:

@@ -16,6 +16,7 @@ import itertools
 import math
 import os
 import statistics
+import threading
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Callable
 
@@ -44,17 +45,31 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+_POOLS: dict[int, ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def _shared_pool(workers: int) -> ThreadPoolExecutor:
+    """One process-wide pool per size, created on first use: starting threads for every short
+    run (``game``'s many replies) cost more than the runs. Its idle threads end with the process."""
+    with _POOLS_LOCK:
+        pool = _POOLS.get(workers)
+        if pool is None:
+            pool = _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="staghunt-block")
+        return pool
+
+
 class BlockRunner:
     """Runs ``work(p0, p1, worker)`` over ``[0, P)`` split into blocks, on ``1..max_threads`` threads.
 
-    The calling thread works too; the others come from a private pool. Blocks are handed out
+    The calling thread works too; the others come from a process-wide pool. Blocks are handed out
     dynamically (first come, first served), so a thread slowed down by another process simply
     takes fewer blocks.
     """
 
     def __init__(self, max_threads: int) -> None:
         self.max_threads = max(1, int(max_threads))
-        self._pool = ThreadPoolExecutor(self.max_threads - 1) if self.max_threads > 1 else None
+        self._pool = _shared_pool(self.max_threads - 1) if self.max_threads > 1 else None
 
     def run(self, work: Callable[[int, int, int], None], n_particles: int, threads: int, align: int = 8) -> None:
         """Process all particles with ``threads`` threads (``1 <= threads <= max_threads``):
@@ -83,9 +98,8 @@ class BlockRunner:
             f.result()
 
     def close(self) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True)
-            self._pool = None
+        """Detach from the shared pool (its threads stay for the next run)."""
+        self._pool = None
 
     def __enter__(self) -> "BlockRunner":
         return self

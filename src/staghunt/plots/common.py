@@ -6,6 +6,7 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from staghunt.result import PlanResult
 
@@ -101,3 +102,15 @@ def _leader_heights(result: PlanResult) -> np.ndarray | None:
     lp = np.asarray(result.leader_path, dtype=float)
     g = np.asarray(result.scenario.world.terrain.height(lp[:, 0], lp[:, 1]), dtype=float)
     return lp[:, 2] - g
+
+
+def _legend_handles(result: PlanResult, obstacle_label: str, alpha: float) -> list[Line2D | Patch]:
+    """Legend entries every path figure shares: start and goal, formation link (if there are
+    edges), obstacle (if there are any)."""
+    handles: list[Line2D | Patch] = list(_start_goal_handles())
+    if _edges(result):
+        handles.append(_link_handle())
+    if result.scenario.world.cylinders:
+        handles.append(Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, alpha=alpha,
+                             label=obstacle_label))
+    return handles

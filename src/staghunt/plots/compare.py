@@ -1,5 +1,6 @@
-"""The comparison figure: ``J_n`` per UAV per method (box plots, log axis) and the paths of each
-method's best seed side by side (top view).
+"""The comparison figure: ``J_n`` per UAV per method (box plots, log axis), the dominance matrix
+(method x method) and the Nash gaps per method, and the paths of each method's best seed side by
+side (top view).
 
 It builds a :class:`matplotlib.figure.Figure` without ``pyplot`` (no global state). UAV colours
 are those of the plan figures (:func:`staghunt.plots.common.uav_colour`).
@@ -23,11 +24,12 @@ from staghunt.plots.common import uav_colour
 
 _METHOD_COLOURS = {
     "game": "#1b9e77",
+    "paper": "#66a61e",
     "rigid": "#d95f02",
     "independent": "#7570b3",
     "weighted": "#e7298a",
 }
-_OTHER = ("#66a61e", "#e6ab02", "#a6761d", "#666666")
+_OTHER = ("#e6ab02", "#a6761d", "#666666", "#1f78b4")
 _OBSTACLE_FACE = "#f2b705"
 _OBSTACLE_EDGE = "#8a6a00"
 
@@ -73,6 +75,53 @@ def _box_axes(fig: Figure, report: CompareReport, records: Sequence[RunRecord]) 
         ax.tick_params(labelsize=10)
         if n == 0:
             ax.set_ylabel("J_n (log scale)", fontsize=11)
+
+
+def _game_axes(fig: Figure, report: CompareReport, records: Sequence[RunRecord]) -> None:
+    """Left: the dominance matrix (seeds where the row's allocation dominates the column's).
+    Right: each run's largest relative Nash gap per method (log axis; infeasible plans, whose gap
+    is infinite, counted under the method's name), with epsilon drawn."""
+    mat = report.data.get("dominance_matrix") or {}
+    methods = [m for m in mat.get("methods", []) if any(r.method == m for r in records)]
+    ax_m, ax_g = fig.subplots(1, 2, width_ratios=[1.0, 1.4])
+    if methods:
+        idx = [mat["methods"].index(m) for m in methods]
+        counts = np.array([[mat["counts"][i][j] for j in idx] for i in idx], dtype=float)
+        compared = np.array([[mat["compared"][i][j] for j in idx] for i in idx], dtype=float)
+        share = np.divide(counts, compared, out=np.zeros_like(counts), where=compared > 0)
+        ax_m.imshow(share, cmap="Greens", vmin=0.0, vmax=1.0)
+        for i in range(len(methods)):
+            for j in range(len(methods)):
+                text = "-" if i == j else f"{int(counts[i, j])}/{int(compared[i, j])}"
+                ax_m.text(j, i, text, ha="center", va="center", fontsize=10,
+                          color="white" if share[i, j] > 0.6 else "black")
+        ax_m.set_xticks(range(len(methods)), methods, rotation=30, ha="right", fontsize=10)
+        ax_m.set_yticks(range(len(methods)), methods, fontsize=10)
+    ax_m.set_title("row dominates column (seeds)", fontsize=11.5)
+    ax_m.set_xlabel("dominated method", fontsize=10)
+    ax_m.set_ylabel("dominating method", fontsize=10)
+
+    eps = report.certify.epsilon if report.certify is not None else None
+    shown = [m for m in report.methods if any(r.method == m and r.nash_gaps() is not None for r in records)]
+    labels = []
+    for i, m in enumerate(shown):
+        gaps = np.array([float(np.max(r.nash_gaps()[1])) for r in records  # type: ignore[index]
+                         if r.method == m and r.nash_gaps() is not None])
+        finite = gaps[np.isfinite(gaps)]
+        k = int((~np.isfinite(gaps)).sum())
+        x = i + 1 + np.linspace(-0.15, 0.15, finite.size) if finite.size > 1 else np.full(finite.size, i + 1.0)
+        ax_g.plot(x, np.maximum(finite, 1e-6), ls="none", marker="o", ms=5.5,
+                  mfc=method_colour(m, report.methods.index(m)), mec="black", mew=0.5)
+        labels.append(f"{m}\n({k} inf)" if k else m)
+    ax_g.set_yscale("log")
+    ax_g.set_xticks(range(1, len(shown) + 1), labels, fontsize=10)
+    if eps is not None and eps > 0:
+        ax_g.axhline(eps, color="#b00020", ls="--", lw=1.2, label=f"epsilon = {eps:.0%}")
+        ax_g.legend(fontsize=9.5, loc="lower right")
+    ax_g.set_ylabel("largest relative Nash gap of the run (floor 1e-6)", fontsize=10)
+    ax_g.set_title("Nash gaps per method (one point per seed; below epsilon = equilibrium)", fontsize=11.5)
+    ax_g.grid(True, axis="y", which="both", alpha=0.3)
+    ax_g.tick_params(labelsize=9.5)
 
 
 def _paths_axes(fig: Figure, report: CompareReport, records: Sequence[RunRecord]) -> None:
@@ -137,9 +186,10 @@ def plot_compare(report: CompareReport) -> Figure:
     n_uavs = len(report.scenario.team)
     n_methods = len({r.method for r in records})
     width = max(4.2 * max(n_uavs, n_methods), 10.0)
-    fig = Figure(figsize=(width, 10.5), layout="constrained")
-    top, bottom = fig.subfigures(2, 1, height_ratios=[1.0, 1.25])
+    fig = Figure(figsize=(width, 15.5), layout="constrained")
+    top, middle, bottom = fig.subfigures(3, 1, height_ratios=[1.0, 1.0, 1.25])
     _box_axes(top, report, records)
+    _game_axes(middle, report, records)
     _paths_axes(bottom, report, records)
     s = report.settings
     seeds = sorted({r.seed for r in records})

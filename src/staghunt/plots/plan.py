@@ -16,10 +16,11 @@ from pathlib import Path
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
-from matplotlib.patches import Circle, Patch
+from matplotlib.patches import Circle
 
 from staghunt.io.atomic import atomic_file
 from staghunt.plots.common import (
+    _legend_handles,
     _LABEL,
     _LEADER,
     _LEGEND,
@@ -32,9 +33,7 @@ from staghunt.plots.common import (
     _ground_grid,
     _ground_range,
     _leader_heights,
-    _link_handle,
     _names,
-    _start_goal_handles,
     _style_axes,
     _title,
     uav_colour,
@@ -137,12 +136,7 @@ def plot_paths_3d(result: PlanResult) -> Figure:
         ax.text(centre[0], centre[1], paths[:, idx, 2].max() + lift, word, fontsize=10.5,
                 ha="center", va="bottom", weight="bold", zorder=6)
 
-    handles += _start_goal_handles()
-    if _edges(result):
-        handles.append(_link_handle())
-    if scenario.world.cylinders:
-        handles.append(Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, alpha=0.6,
-                             label="obstacle"))
+    handles += _legend_handles(result, "obstacle", alpha=0.6)
     ax.legend(handles=handles, loc="upper left", fontsize=_LEGEND, framealpha=0.9)
 
     ax.set_xlim(b.xmin, b.xmax)
@@ -169,6 +163,7 @@ def plot_top_view(result: PlanResult) -> Figure:
     paths = np.asarray(result.paths, dtype=float)
     names = _names(result)
     delta = float(scenario.costs.danger_margin)
+    keep_out = float(scenario.costs.min_clearance) + max(u.radius for u in scenario.team)
 
     fig = Figure(figsize=(10, 8), layout="constrained")
     ax = fig.add_subplot()
@@ -187,14 +182,16 @@ def plot_top_view(result: PlanResult) -> Figure:
         if delta > 0:
             ax.add_patch(Circle((c.x, c.y), c.radius + delta, fill=False, edgecolor=_OBSTACLE_EDGE,
                                 ls="--", lw=1.0, alpha=0.9, zorder=2))
+        ax.add_patch(Circle((c.x, c.y), c.radius + keep_out, fill=False, edgecolor="#b00020",
+                            ls="-", lw=0.9, alpha=0.8, zorder=2))
         if c.name:
             ax.annotate(c.name, (c.x, c.y), ha="center", va="center", fontsize=8.5,
                         color="black", zorder=6)
 
-    for h, t in _edges(result):
+    for h, t in _edges(result):  # the formation's shape at every waypoint index k
         for k in range(paths.shape[1]):
             p, q = paths[h, k], paths[t, k]
-            ax.plot((p[0], q[0]), (p[1], q[1]), color=_LINK, ls=":", lw=0.9, zorder=3)
+            ax.plot((p[0], q[0]), (p[1], q[1]), color=_LINK, ls=":", lw=1.1, zorder=3)
 
     length = np.asarray(result.metrics.path_length, dtype=float)
     for n, name in enumerate(names):
@@ -212,15 +209,13 @@ def plot_top_view(result: PlanResult) -> Figure:
                           label="virtual leader", zorder=4)
         handles.append(lead)
 
-    handles += _start_goal_handles()
-    if _edges(result):
-        handles.append(_link_handle())
+    handles += _legend_handles(result, "obstacle (radius R)", alpha=0.75)
     if scenario.world.cylinders:
-        handles.append(Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, alpha=0.75,
-                             label="obstacle (radius R)"))
         if delta > 0:
             handles.append(Line2D([], [], color=_OBSTACLE_EDGE, ls="--", lw=1.0,
                                   label=f"danger margin R + Δ (Δ = {delta:g} m)"))
+        handles.append(Line2D([], [], color="#b00020", ls="-", lw=0.9,
+                              label=f"keep-out for UAV centres R + r + c ({keep_out:g} m)"))
     fig.legend(handles=handles, loc="outside right upper", fontsize=_LEGEND,
                title="path length in brackets", title_fontsize=_LEGEND)
 

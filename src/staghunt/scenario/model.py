@@ -13,7 +13,7 @@ from staghunt.world import GeoOrigin, World
 
 @dataclass(frozen=True)
 class CostParams:
-    """Parameters of the cost terms (MODEL.md sections 2 and 4).
+    """Parameters of the cost terms (docs/model.md eqs. (2b), (2c), (2d), (2e), (6)).
 
     - ``danger_margin``: ``Delta`` (m), width of the penalised band around an obstacle.
     - ``safe_distance``: ``d_s`` (m); UAVs ``n`` and ``m`` collide when closer than ``d_s + 2 r_n``.

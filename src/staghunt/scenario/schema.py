@@ -53,6 +53,15 @@ def _fail(key: str, detail: str) -> PydanticCustomError:
 class _Table(BaseModel):
     model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
 
+    @model_validator(mode="before")
+    @classmethod
+    def _none_is_absent(cls, data: Any) -> Any:
+        """A known key whose value is ``None`` counts as absent (plain-data form); an unknown
+        key is still reported, whatever its value."""
+        if isinstance(data, Mapping):
+            return {k: v for k, v in data.items() if v is not None or k not in cls.model_fields}
+        return data
+
 
 # --------------------------------------------------------------------------------------------
 # Tables
@@ -219,11 +228,29 @@ _UNITS = {"turning_threshold_deg": " degrees", "climb_threshold_deg": " degrees"
 _ARRAY_HINTS = {"team": " (write [[team]] for each UAV)", "obstacles": " (write [[obstacles]] for each obstacle)"}
 
 
+# pydantic error type -> message ({got}: "got a string '100'"; {value}: the value itself).
+_MESSAGES = {
+    "missing": "required key is missing",
+    "float_type": "expected a number, {got}",
+    "finite_number": "must be a finite number, got {value}",
+    "int_type": "expected an integer, {got}",
+    "bool_type": "expected true or false, {got}",
+    "string_type": "expected a string, {got}",
+    "model_type": "expected a table, {got}",
+    "dict_type": "expected a table, {got}",
+    "model_attributes_type": "expected a table, {got}",
+    "list_type": "expected an array, {got}",
+    "tuple_type": "expected an array, {got}",
+    "literal_error": "must be one of {expected}, got {value!r}",
+    "string_pattern_mismatch": "must not be empty, got {value!r}",
+}
+
+
 def plain(value: Any) -> Any:
     """``value`` as plain TOML-like data: NumPy arrays and scalars become lists and Python
-    scalars, tuples lists, and a table key whose value is ``None`` is left out (absent)."""
+    scalars, tuples lists (a key whose value is ``None`` counts as absent: see ``_Table``)."""
     if isinstance(value, Mapping):
-        return {k: plain(v) for k, v in value.items() if v is not None}
+        return {k: plain(v) for k, v in value.items()}
     if isinstance(value, (list, tuple, np.ndarray)):
         return [plain(v) for v in value]
     if isinstance(value, np.generic):
@@ -343,26 +370,9 @@ def _message(err: Any) -> tuple[str, str]:
         table = _table_at(loc)
         allowed = ", ".join(table.model_fields) if table is not None else ""
         return key_path(loc), f"unknown key; allowed keys here: {allowed}"
-    if kind == "missing":
-        return key_path(loc), "required key is missing"
-    if kind in ("float_type", "int_from_float"):
-        return key_path(loc), f"expected a number, {got}"
-    if kind == "finite_number":
-        return key_path(loc), f"must be a finite number, got {value}"
-    if kind == "int_type":
-        return key_path(loc), f"expected an integer, {got}"
-    if kind == "bool_type":
-        return key_path(loc), f"expected true or false, {got}"
-    if kind == "string_type":
-        return key_path(loc), f"expected a string, {got}"
-    if kind in ("model_type", "dict_type", "model_attributes_type"):
-        return key_path(loc), f"expected a table, {got}"
-    if kind in ("list_type", "tuple_type"):
-        return key_path(loc), f"expected an array, {got}{_ARRAY_HINTS.get(str(loc[-1]), '')}"
-    if kind == "literal_error":
-        return key_path(loc), f"must be one of {ctx.get('expected')}, got {value!r}"
-    if kind == "string_pattern_mismatch":
-        return key_path(loc), f"must not be empty, got {value!r}"
+    if kind in _MESSAGES:
+        hint = _ARRAY_HINTS.get(str(loc[-1]), "") if kind == "list_type" else ""
+        return key_path(loc), _MESSAGES[kind].format(got=got, value=value, expected=ctx.get("expected")) + hint
     if kind in ("too_short", "too_long"):
         if loc == ("team",):
             return "team", "the team needs at least one UAV ([[team]] entry)"

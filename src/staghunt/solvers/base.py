@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Callable
 
 import numpy as np
 
+from staghunt.costs import Evaluator, evaluate
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
@@ -27,23 +28,25 @@ class SolverOutput:
     details: Mapping[str, Any] = field(default_factory=dict)
 
 
-class Method(Protocol):
-    """A method: ``(scenario, settings, rng, progress, *, runner) -> SolverOutput``.
+@dataclass(frozen=True, eq=False)
+class MethodRun:
+    """What a method is given: the ``scenario``, the ``settings`` (its budget), the run's one
+    seeded ``rng``, an optional ``progress`` callback, and the engine's parts: ``runner`` runs a
+    :class:`~staghunt.solvers.problem.SwarmProblem` (:func:`~staghunt.solvers.swarm.run_swarm`,
+    the NumPy reference, or an engine's ``run_swarm``), so every engine runs every method;
+    ``evaluator`` scores batches of given plans (contract of :func:`staghunt.costs.evaluate`),
+    for methods that also search outside a swarm (``game``'s polish)."""
 
-    Every method builds one or more :class:`~staghunt.solvers.problem.SwarmProblem` and hands
-    them to ``runner`` (:func:`~staghunt.solvers.swarm.run_swarm`, the NumPy reference, or an
-    engine's ``run_swarm``), so every engine runs every method.
-    """
+    scenario: Scenario
+    settings: SolverSettings
+    rng: np.random.Generator
+    progress: Progress | None = None
+    runner: SwarmRunner = run_swarm
+    evaluator: Evaluator = evaluate
 
-    def __call__(
-        self,
-        scenario: Scenario,
-        settings: SolverSettings,
-        rng: np.random.Generator,
-        progress: Progress | None = None,
-        *,
-        runner: SwarmRunner = run_swarm,
-    ) -> SolverOutput: ...
+
+Method = Callable[[MethodRun], SolverOutput]
+"""A planning method: ``MethodRun -> SolverOutput``."""
 
 
 METHODS: dict[str, Method] = {}

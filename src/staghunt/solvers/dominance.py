@@ -3,7 +3,7 @@
 Shapes: ``C`` players (objectives). ``cost``: ``(..., C)``; ``violation``: ``(...,)`` total
 constraint violation (0 = feasible).
 
-Rule (MODEL.md s.5): a feasible allocation has finite costs; an infeasible one has some
+Rule (docs/model.md section 5, eq. (9b)): a feasible allocation has finite costs; an infeasible one has some
 ``inf``. Then ``a`` dominates ``b`` when
 
 - both are feasible and ``cost_a <= cost_b`` everywhere and ``<`` somewhere (paper eq. 9); or

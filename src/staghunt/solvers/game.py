@@ -11,10 +11,12 @@ one generator:
    a feasible allocation with zero formation error that no UAV can improve much alone.
 2. **Best-response rounds**: the UAVs in turn re-optimise their own path with the others fixed
    (single-UAV SPSO on ``J_n``, :func:`~staghunt.solvers.problem.solo_problem`), warm-started from
-   the current path, the UAV's earlier replies and perturbations of the current path
-   (:data:`LOCAL_SHARE` of the particles). A reply replaces the path only if the plan stays
-   feasible and ``J_n`` drops by more than :data:`ACCEPT_TOL` (relative). With the paper's
-   symmetric edge weights the game is a weighted potential game (docs/model.md, eq. (12)):
+   the current path, the UAV's earlier replies, its :func:`formation_target` and perturbations of
+   the current path (:data:`LOCAL_SHARE` of the particles), then refined by :func:`polish` (a
+   pattern search in the site frame, :data:`POLISH_SHARE` of the reply's budget). A reply
+   replaces the path only if the plan stays feasible and ``J_n`` drops by more than
+   :data:`ACCEPT_TOL` (relative). With the paper's
+   symmetric edge weights the game is a weighted potential game (docs/model.md, eq. (17)):
    every accepted reply lowers ``Phi = sum_n J_s,n / beta_n + 1/2 sum_n J_f,n``, so the rounds
    cannot cycle.
 3. **Reply budget**: it starts at :data:`REPLY_START` of the remaining budget per reply and
@@ -31,24 +33,25 @@ rounds, accepted replies, reply budgets and each round's largest relative gain.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
-from staghunt.costs import CostModel, evaluate, to_absolute
+from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import encode
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import solo_problem
+from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.solvers.rigid import rigid_problem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
+from staghunt.solvers.swarm import Progress
 
 SEED_SHARE = 0.10
 """Share of the budget spent on the rigid seed."""
 REPLY_START = 0.01
 """First reply budget (per UAV) as a share of the budget left after the seed."""
 REPLY_PARTICLES = 50
-"""Particles of a reply search (fewer if the run's ``particles`` is smaller)."""
+"""Least particles of a reply search (fewer only if the run's ``particles`` is smaller)."""
+REPLY_ITERATIONS = 100
+"""Iterations a reply search aims at: larger reply budgets get more particles rather than more
+iterations (a swarm's per-iteration overhead is paid once per iteration); 0 = always the least."""
 LOCAL_SHARE = 0.25
 """Share of a reply's particles started near the UAV's current path."""
 LOCAL_SPREAD = 0.05
@@ -59,9 +62,9 @@ GROW_BELOW = 0.005
 """Double the reply budget after a round whose largest relative gain is below this."""
 STOP_FRACTION = 0.25
 """Converged: a verification-strength round with every gain below ``epsilon * STOP_FRACTION``."""
-EPSILON = 0.01
+EPSILON = DEFAULT_EPSILON
 """The relative Nash gap the method aims below (the certificate's default tolerance)."""
-VERIFY_EVALUATIONS = 400 * 201
+VERIFY_EVALUATIONS = DEFAULT_PARTICLES * (DEFAULT_ITERATIONS + 1)
 """A reply search at least this strong (the default certificate's) may declare convergence."""
 MIN_REPLY_ITERATIONS = 5
 POLISH_SHARE = 0.25
@@ -83,7 +86,10 @@ class _Rows:
 
 def _reply_shape(evaluations: int, particles: int) -> tuple[int, int]:
     """``(particles, iterations)`` of a reply's swarm search spending about ``evaluations``."""
-    p = max(1, min(particles, REPLY_PARTICLES))
+    p = REPLY_PARTICLES
+    if REPLY_ITERATIONS > 0:
+        p = max(p, evaluations // (REPLY_ITERATIONS + 1))
+    p = max(1, min(particles, p))
     iterations = max(MIN_REPLY_ITERATIONS, evaluations // p - 1)
     return p, iterations
 
@@ -111,7 +117,8 @@ def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
 
 
 def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
-           step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
+           evaluator: Evaluator = evaluate, step: float = POLISH_STEP,
+           min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
     """Local pattern search on UAV ``n``'s free waypoints in the site frame, the others fixed.
 
     The spherical encoding moves every later waypoint with each step, so a swarm refines a
@@ -120,17 +127,19 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     path combining every improving move; the best feasible one that lowers ``J_n`` is taken,
     else ``step`` halves, down to ``min_step`` metres. Returns the ``(N, K, 3)`` plan (``plan``
     itself if nothing improved) and the path evaluations spent (``<= max_evaluations``).
+    ``evaluator`` scores the candidates (an engine's ``evaluate``); the plan's own cost is
+    taken with the same evaluator, so every comparison is made in one arithmetic.
     """
     K = plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
-    current = evaluate(model, plan[None])
+    current = evaluator(model, plan[None])
     if current.total_violation[0] != 0:
         return plan, 0
     best, J = plan, float(current.total[0, n])
     spent = 0
     while step >= min_step and spent + 6 * K + 1 <= max_evaluations:
         cands = np.clip(best[n][None] + step * moves, model.lower, model.upper)
-        Jc = _own_costs(model, best, n, cands)
+        Jc = _own_costs(model, best, n, cands, evaluator)
         spent += len(cands)
         gain = J - Jc  # (6K,)
         if not gain.max() > ACCEPT_TOL * J:
@@ -139,7 +148,7 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
         g = gain.reshape(2, 3 * K)
         direction = np.where(g[0] >= g[1], 1.0, -1.0) * (np.maximum(g[0], g[1]) > 0)
         combined = np.clip(best[n] + step * direction.reshape(K, 3), model.lower, model.upper)
-        Jcomb = _own_costs(model, best, n, combined[None])[0]
+        Jcomb = _own_costs(model, best, n, combined[None], evaluator)[0]
         spent += 1
         i = int(np.argmax(gain))
         new = best.copy()
@@ -148,12 +157,13 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     return best, spent
 
 
-def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray) -> np.ndarray:
+def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray,
+               evaluator: Evaluator) -> np.ndarray:
     """``(Q,)`` ``J_n`` of ``plan`` with UAV ``n``'s path replaced by each of ``paths``
     ``(Q, K, 3)``; ``inf`` where the deviation breaks a hard constraint."""
     team = np.repeat(plan[None], len(paths), axis=0)
     team[:, n] = paths
-    c = evaluate(model, team)
+    c = evaluator(model, team)
     return np.where(c.total_violation == 0, c.total[:, n], np.inf)
 
 
@@ -171,14 +181,9 @@ def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], r
 
 
 @register("game", "stag-hunt game solved to an equilibrium: rigid seed, then best-response rounds (default)")
-def solve_game(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-) -> SolverOutput:
+def solve_game(run: MethodRun) -> SolverOutput:
+    scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
+    runner, evaluator = run.runner, run.evaluator
     model = CostModel.from_scenario(scenario)
     N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
     budget = P * (I + 1) * N
@@ -205,10 +210,10 @@ def solve_game(
     converged = False
     while not converged:
         remaining = budget - spent
-        per_reply = min(reply_evals, remaining // N)
+        per_reply = min(reply_evals, remaining // N - 1)
         local = int(POLISH_SHARE * per_reply)
         p_r, i_r = _reply_shape(per_reply - local, P)
-        if N * (p_r * (i_r + 1) + local) > remaining:
+        if N * (p_r * (i_r + 1) + local + 1) > remaining:
             break
         reply_settings = settings.with_(particles=p_r, iterations=i_r)
         gains = np.zeros(N)
@@ -220,9 +225,9 @@ def solve_game(
             spent += out.path_evaluations
             candidate = plan.copy()
             candidate[n] = out.best_waypoints[n]
-            candidate, used = polish(model, candidate, n, local)
-            spent += used
-            c = evaluate(model, candidate[None])
+            candidate, used = polish(model, candidate, n, local, evaluator)
+            c = evaluate(model, candidate[None])  # the reply judged by the reference: 1 more path
+            spent += used + 1
             new = c.total[0]
             if c.total_violation[0] == 0 and new[n] < J[n] * (1.0 - ACCEPT_TOL):
                 gains[n] = (J[n] - new[n]) / J[n]

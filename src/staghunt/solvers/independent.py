@@ -1,4 +1,4 @@
-"""``independent``: the "hare" strategy of MODEL.md section 6.
+"""``independent``: the "hare" strategy of docs/model.md section 6.
 
 Every UAV minimises its own single-UAV cost ``J_s`` alone, ignoring the team: no formation term
 and no team-mates (so no separation constraint either). That is ``N`` separate single-UAV SPSO
@@ -30,10 +30,9 @@ import dataclasses
 import numpy as np
 
 from staghunt.costs import CostModel, evaluate
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import team_problem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
+from staghunt.solvers.swarm import Progress
 
 
 def solo_model(model: CostModel, n: int) -> CostModel:
@@ -74,14 +73,8 @@ class _Offset:
 
 
 @register("independent", "hare strategy: each UAV minimises its own J_s alone, ignoring the team (baseline)")
-def solve_independent(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-) -> SolverOutput:
+def solve_independent(run: MethodRun) -> SolverOutput:
+    scenario, settings, rng, progress, runner = run.scenario, run.settings, run.rng, run.progress, run.runner
     model = CostModel.from_scenario(scenario)
     N, K = model.n_uavs, settings.waypoints
     waypoints = np.empty((N, K, 3))

@@ -13,28 +13,18 @@ from __future__ import annotations
 
 from typing import Literal
 
-import numpy as np
-
 from staghunt.costs import CostModel
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import team_problem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
-def solve_team(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None,
-    runner: SwarmRunner,
-    objective: Literal["players", "sum"],
-) -> SolverOutput:
+def solve_team(run: MethodRun, objective: Literal["players", "sum"]) -> SolverOutput:
     """One swarm per UAV moving jointly; ``objective`` ``"players"`` (the game: Pareto dominance
     over the ``J_n``) or ``"sum"`` (centralised: ``sum_n J_n``)."""
-    model = CostModel.from_scenario(scenario)
-    problem = team_problem(model, settings.waypoints, settings.velocity_fraction, objective)
-    out = runner(problem, settings, rng, progress)
+    model = CostModel.from_scenario(run.scenario)
+    s = run.settings
+    problem = team_problem(model, s.waypoints, s.velocity_fraction, objective)
+    out = run.runner(problem, s, run.rng, run.progress)
     return SolverOutput(
         waypoints=out.best_waypoints,
         history=out.record_history,
@@ -44,12 +34,5 @@ def solve_team(
 
 
 @register("paper", "the paper's Algorithm 1: one swarm per UAV, Pareto-dominance bests (no equilibrium guarantee)")
-def solve_paper(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-) -> SolverOutput:
-    return solve_team(scenario, settings, rng, progress, runner, "players")
+def solve_paper(run: MethodRun) -> SolverOutput:
+    return solve_team(run, "players")

@@ -1,11 +1,11 @@
 """Unilateral best responses and the equilibrium certificate: each UAV's Nash gap.
 
-A team plan ``X = (X_1 .. X_N)`` is a Nash equilibrium of the game of MODEL.md section 5 when
+A team plan ``X = (X_1 .. X_N)`` is a Nash equilibrium of the game of docs/model.md section 5 when
 no UAV can lower its own cost ``J_n(X_n, X_-n)`` by changing only its own path. For every UAV
 ``n`` this module fixes the others' paths, re-optimises ``X_n`` alone on ``J_n`` with
 single-player SPSO (one swarm, :func:`staghunt.solvers.swarm.run_swarm`), seeded, with a given
 budget and warm-started from the current path (particle 0 is the encoded current path), and
-reports the **Nash gap**
+reports the **Nash gap** (docs/model.md eq. (16))
 
     ``gap_n = J_n(X) - J_n(best response found)``  (absolute, >= 0), and ``gap_n / J_n(X)``.
 
@@ -20,8 +20,11 @@ What the certificate is and is not:
   better than ``epsilon`` was found with this budget", not a proof. More particles and
   iterations make it stronger.
 - The deviation is judged with the feasibility-first rule of
-  :mod:`staghunt.solvers.dominance`: a deviation that breaks a hard constraint (obstacle, ground,
-  separation along segments) never beats a feasible path.
+  :mod:`staghunt.solvers.dominance` on the deviating UAV's own violation (docs/model.md eq.
+  (19)): a deviation that breaks a hard constraint (obstacle, ground, separation along
+  segments) never beats a feasible path.
+- The search is independent of how the plan was found: a plain swarm, its own seeds
+  (``[seed, n]``), no polish, so a method cannot certify itself by construction.
 - An infeasible plan gets no certificate: its gaps are reported as infinite
   (``status = "infeasible"``), because a UAV with an infinite cost gains an unbounded amount by
   any feasible deviation, and the others' costs are not comparable while the team violates a

@@ -1,4 +1,4 @@
-"""``rigid``: the rigid-formation baseline (Chen et al. 2015), MODEL.md section 6.
+"""``rigid``: the rigid-formation baseline (Chen et al. 2015), docs/model.md section 6.
 
 A virtual leader flies from the centroid of the starts to the centroid of the goals (SPSO, one
 swarm); the members keep the reference shape rigidly around it: member ``n``'s free waypoint
@@ -14,10 +14,8 @@ import numpy as np
 
 from staghunt.costs import CostModel, to_absolute
 from staghunt.encoding import decode, search_space
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import SwarmProblem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
 class FormationTooLarge(ValueError):
@@ -30,14 +28,8 @@ def formation_offsets(model: CostModel) -> np.ndarray:
 
 
 @register("rigid", "rigid formation: one virtual leader, members at fixed offsets (baseline)")
-def solve_rigid(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-) -> SolverOutput:
+def solve_rigid(run: MethodRun) -> SolverOutput:
+    scenario, settings, rng, progress, runner = run.scenario, run.settings, run.rng, run.progress, run.runner
     model = CostModel.from_scenario(scenario)
     problem = rigid_problem(model, settings.waypoints, settings.velocity_fraction)
     out = runner(problem, settings, rng, progress)

@@ -1,4 +1,4 @@
-"""``weighted``: the centralised cooperative baseline of MODEL.md section 6.
+"""``weighted``: the centralised cooperative baseline of docs/model.md section 6.
 
 One optimiser over all paths: ``S = N`` swarms move jointly (joint particle ``i`` = particle
 ``i`` of every swarm = all ``N`` paths) and the single compared objective is the team's summed
@@ -12,21 +12,10 @@ Output: ``history``: ``(I + 1, N)`` each UAV's ``J_n`` of the best allocation;
 
 from __future__ import annotations
 
-import numpy as np
-
-from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.base import SolverOutput, register
+from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.paper import solve_team
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
 @register("weighted", "centralised weighted sum: one swarm over all paths minimising sum_n J_n (baseline)")
-def solve_weighted(
-    scenario: Scenario,
-    settings: SolverSettings,
-    rng: np.random.Generator,
-    progress: Progress | None = None,
-    *,
-    runner: SwarmRunner = run_swarm,
-) -> SolverOutput:
-    return solve_team(scenario, settings, rng, progress, runner, "sum")
+def solve_weighted(run: MethodRun) -> SolverOutput:
+    return solve_team(run, "sum")

@@ -1,4 +1,4 @@
-"""Formation graph and formation error (paper eq. 5), in both of its forms.
+"""Formation graph and formation error (docs/model.md eq. (5)), in both of its forms.
 
 Shapes: ``N`` UAVs, ``M`` edges, ``K`` waypoints. Positions are absolute ``(x, y, z)``.
 """
@@ -39,7 +39,7 @@ class Formation:
 
 
 def formation_error_edges(positions: np.ndarray, formation: Formation) -> np.ndarray:
-    """Edge-sum form of eq. 5.
+    """Edge-sum form of eq. (5a).
 
     ``positions``: ``(..., N, 3)`` absolute positions of the team at one instant (any leading
     batch axes). Returns ``(..., N)``: ``E_n = sum_e mu[n, e] ||(P_h - P_t) - (P_h,r - P_t,r)||^2``.
@@ -52,7 +52,7 @@ def formation_error_edges(positions: np.ndarray, formation: Formation) -> np.nda
 
 
 def formation_error_quadratic(positions: np.ndarray, formation: Formation) -> np.ndarray:
-    """Quadratic form of eq. 5: ``E_n = (P - P_r)^T (D W_n D^T (x) I_3) (P - P_r)``.
+    """Quadratic form of eq. (5b): ``E_n = (P - P_r)^T (D W_n D^T (x) I_3) (P - P_r)``.
 
     Same shapes as :func:`formation_error_edges`; the two agree to rounding.
     """

@@ -19,7 +19,8 @@ from staghunt.analysis.compare.model import (
     _enc,
     _enc_list,
 )
-from staghunt.analysis.compare.stats import dominance_table, summarize
+from staghunt.analysis.compare.stats import dominance_matrix, dominance_table, summarize
+from staghunt.io.numbers import number_text
 from staghunt.scenario.model import Scenario, SolverSettings
 
 CSV_COLUMNS = (
@@ -87,6 +88,7 @@ def aggregate(
     eps = certify.epsilon if certify is not None else None
     summary = summarize(records, methods, eps)
     dom = dominance_table(records, methods)
+    matrix = dominance_matrix(records, methods)
     done = {(r.method, r.seed) for r in records}
     data = {
         "format": COMPARE_FORMAT,
@@ -108,6 +110,7 @@ def aggregate(
         "missing": [f"{m}-s{s}" for s in seeds for m in methods if (m, s) not in done],
         "summary": summary,
         "dominance": dom,
+        "dominance_matrix": matrix,
         "paper_fig8": fig8_block(records, scenario, settings),
         "runs": [_record_dict(r, dom) for r in records],
     }
@@ -127,12 +130,7 @@ def csv_text(report: CompareReport) -> str:
     dom = report.data.get("dominance", {})
 
     def num(v: float) -> str:
-        v = float(v)
-        if math.isnan(v):
-            return ""
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
+        return number_text(v, nan="")
 
     for r in report.records:
         gaps = r.nash_gaps()
@@ -154,12 +152,7 @@ def csv_text(report: CompareReport) -> str:
 
 
 def _g(v: Any, fmt: str = ".4g") -> str:
-    v = _decode(v) if isinstance(v, str) or v is None else float(v)
-    if math.isnan(v):
-        return "-"
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return format(v, fmt)
+    return number_text(_decode(v) if isinstance(v, str) or v is None else v, fmt, nan="-")
 
 
 def _pct(v: Any) -> str:
@@ -241,6 +234,15 @@ def format_report(report: CompareReport) -> str:
             rows.append((m, *[short.get(e["seeds"].get(x, ""), "-") for x in seeds],
                          f"{e['game_dominates']}/{e['compared']}"
                          + (f" (dominated in {e['dominates_game']})" if e["dominates_game"] else "")))
+        lines.append(_table(rows, left=1))
+    mat = d.get("dominance_matrix")
+    if mat and len(mat["methods"]) > 1:
+        lines += ["", "Dominance matrix: seeds where the row method's allocation Pareto-dominates the column's"]
+        ms = mat["methods"]
+        rows = [("row dominates column", *ms)]
+        for i, m in enumerate(ms):
+            rows.append((m, *["-" if i == j else f"{mat['counts'][i][j]}/{mat['compared'][i][j]}"
+                              for j in range(len(ms))]))
         lines.append(_table(rows, left=1))
     fig8 = d.get("paper_fig8")
     if fig8:

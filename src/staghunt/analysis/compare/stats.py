@@ -117,6 +117,28 @@ def dominance_table(records: Sequence[RunRecord], methods: Sequence[str],
     return out
 
 
+def dominance_matrix(records: Sequence[RunRecord], methods: Sequence[str]) -> dict[str, Any]:
+    """Method x method: ``counts[i][j]`` = seeds where method ``i``'s allocation Pareto-dominates
+    method ``j``'s (same ``J_n``, feasibility first, eq. (9b)); ``compared[i][j]`` = seeds both
+    ran. The diagonal is 0."""
+    by = {(r.method, r.seed): r for r in records}
+    M = len(methods)
+    counts = [[0] * M for _ in range(M)]
+    compared = [[0] * M for _ in range(M)]
+    seeds = sorted({r.seed for r in records})
+    for i, a in enumerate(methods):
+        for j, b in enumerate(methods):
+            if i == j:
+                continue
+            for s in seeds:
+                ra, rb = by.get((a, s)), by.get((b, s))
+                if ra is None or rb is None:
+                    continue
+                compared[i][j] += 1
+                counts[i][j] += bool(dominates(ra.J, np.float64(ra.violation), rb.J, np.float64(rb.violation)))
+    return {"methods": list(methods), "counts": counts, "compared": compared}
+
+
 def best_seed(records: Sequence[RunRecord], method: str) -> RunRecord | None:
     """The method's best run: least violation, then least ``sum_n ln J_n`` (the dominance
     tie-break of :func:`staghunt.solvers.dominance.preference`), then the lowest seed."""
