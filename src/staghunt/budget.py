@@ -19,9 +19,13 @@ from dataclasses import dataclass, field
 from typing import Any, Callable
 
 F8 = 8
-BASELINE_BYTES = 190 * 2**20
-"""Resident memory of a ``staghunt plan`` process before its arrays (interpreter, NumPy,
-Numba and the compiled kernels, matplotlib not loaded); measured by ``benchmarks/memory.py``."""
+BASELINE_BYTES = 175 * 2**20
+"""Resident memory of a ``staghunt plan`` process before its arrays with the compiled engine
+(interpreter, NumPy, pydantic, Numba and the loaded kernels; matplotlib not loaded), measured
+with a 10-particle run (``benchmarks/memory.py``)."""
+
+BASELINE_NUMPY_BYTES = 50 * 2**20
+"""The same with the NumPy engine (Numba is not imported)."""
 
 WARN_FRACTION = 0.25
 """Warn when a run needs more than this share of the available memory."""
@@ -120,14 +124,15 @@ def _swarm_parts(engine: str, P: int, I: int, K: int, S: int, C: int, N: int, T:
         parts["costs (P)"] = (2 * C + N + 2) * P * F8
         parts["engine scratch"] = threads * _scratch(N, K, S)
     else:
-        # X, V, pbest, r1, r2 and the velocity update's temporaries.
-        parts["swarm X, V, best (S x K x 3 x P)"] = 8 * cube
+        # X, V, pbest, r1, r2 and the velocity update's temporaries (those alive at the peak).
+        parts["swarm X, V, best (S x K x 3 x P)"] = 6 * cube
         parts["costs (P)"] = (2 * C + 2 * N + 2) * P * F8
-        # The evaluation's largest temporaries: pairwise separations (P, N, N, K + 2, 3) and the
-        # obstacle distances (P, N, K + 1, T), next to the decoded paths (P, N, K + 2, 3).
+        # The evaluation's largest temporaries alive at once: pairwise separations
+        # (P, N, N, K + 2, 3), obstacle distances (P, N, K + 1, T), decoded paths (P, N, K + 2, 3);
+        # the factors are calibrated on measured peaks (benchmarks/memory.py).
         pair = P * N * N * (K + 2) * 3 * F8 if N > 1 else 0
-        parts["evaluation temporaries"] = (4 * pair + 4 * P * N * (K + 1) * max(T, 1) * F8
-                                           + 10 * P * N * (K + 2) * 3 * F8)
+        parts["evaluation temporaries"] = (3 * pair + 3 * P * N * (K + 1) * max(T, 1) * F8
+                                           + 15 * P * N * (K + 2) * 3 * F8 // 2)
     parts["history (I + 1)"] = (I + 1) * (C + N + 1) * F8
     return parts
 
@@ -141,6 +146,10 @@ def _resolve(engine: Any) -> str:
 
         return "numba" if numba_available() else "numpy"
     return name
+
+
+def _baseline(engine: str) -> int:
+    return BASELINE_BYTES if engine == "numba" else BASELINE_NUMPY_BYTES
 
 
 def _threads(engine: str, threads: int | None) -> int:
@@ -169,8 +178,8 @@ def estimate_plan(scenario: Any, settings: Any, method: str = "game", engine: An
         cert = _swarm_parts(name, int(certify.particles), int(certify.iterations), K, 1, 1, N, T, nthreads)
         if sum(cert.values()) > sum(parts.values()):
             parts = {f"certificate {k}": v for k, v in cert.items()}
-    total = BASELINE_BYTES + sum(parts.values())
-    return MemoryEstimate(total=total, baseline=BASELINE_BYTES, parts=parts, what="plan")
+    base = _baseline(name)
+    return MemoryEstimate(total=base + sum(parts.values()), baseline=base, parts=parts, what="plan")
 
 
 def estimate_certify(n_uavs: int, n_obstacles: int, waypoints: int, particles: int, iterations: int,
@@ -179,8 +188,8 @@ def estimate_certify(n_uavs: int, n_obstacles: int, waypoints: int, particles: i
     name = _resolve(engine)
     parts = _swarm_parts(name, int(particles), int(iterations), int(waypoints), 1, 1, n_uavs,
                          n_obstacles, _threads(name, threads))
-    return MemoryEstimate(total=BASELINE_BYTES + sum(parts.values()), baseline=BASELINE_BYTES,
-                          parts=parts, what="certificate")
+    base = _baseline(name)
+    return MemoryEstimate(total=base + sum(parts.values()), baseline=base, parts=parts, what="certificate")
 
 
 _warned: set[tuple[str, int]] = set()
