@@ -575,3 +575,74 @@ def test_certify_process_substitution(tmp_path, result_file):
     proc = _sub(["certify", f"<(cat {result_file})", *CERT], "", tmp_path)
     assert "not valid JSON" not in proc.stderr and "Traceback" not in proc.stderr, proc.stderr
     assert "verdict:" in proc.stdout
+
+
+# ------------------------------------------------------------------------------------------------
+# DEM files, threads, random edits of a result file
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("case", ["huge", "nan", "object", "3d", "garbage", "directory"])
+def test_dem_files(tmp_path, capsys, case):
+    import numpy as np
+
+    dem = tmp_path / "dem.npy"
+    if case == "huge":
+        np.save(dem, np.full((20, 20), 1e300))
+    elif case == "nan":
+        np.save(dem, np.full((20, 20), np.nan))
+    elif case == "object":
+        np.save(dem, np.array([[{"a": 1}]], dtype=object), allow_pickle=True)
+    elif case == "3d":
+        np.save(dem, np.zeros((2, 2, 2)))
+    elif case == "garbage":
+        dem.write_bytes(b"\x93NUMPY garbage")
+    else:
+        dem.mkdir()
+    text = SCENARIO_TEXT.replace('kind = "flat"', f'kind = "dem"\nfile = "{dem}"\ncell_size = 10.0')
+    if text == SCENARIO_TEXT:
+        pytest.skip("scenario1 has no ground.kind line to edit")
+    p = write(tmp_path, "s.toml", text)
+    refused(capsys, "show", str(p), expect=r"ground|DEM")
+
+
+def test_threads_are_bounded(tmp_path, capsys):
+    refused(capsys, "plan", "scenario1", *TINY, "--threads", "1000000", "--out", str(tmp_path / "o"),
+            expect=r"--threads: must be an integer <= ")
+
+
+def _leaves(value, where=()):
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from _leaves(v, (*where, k))
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from _leaves(v, (*where, i))
+    else:
+        yield where
+
+
+JSON_VALUES = st.none() | st.booleans() | st.integers() | st.floats(allow_nan=False, allow_infinity=False) \
+    | st.text(max_size=4) | st.lists(st.integers(), max_size=2) | st.just({})
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.data())
+def test_certify_random_edits_never_crash(tmp_path_factory, capsys, result_data, data):
+    """Replace one leaf (outside the long notes and histories) of a real result.json by a random
+    JSON value: certify refuses it (2) or certifies (0 / 3), never a traceback."""
+    leaves = [w for w in _leaves(result_data)
+              if w and w[0] not in ("notes", "objective_history", "search", "certificate", "message")
+              and "history" not in w]
+    where = data.draw(st.sampled_from(leaves))
+    value = data.draw(JSON_VALUES)
+    d = copy.deepcopy(result_data)
+    target = d
+    for k in where[:-1]:
+        target = target[k]
+    target[where[-1]] = value
+    p = tmp_path_factory.mktemp("edit") / "result.json"
+    p.write_text(json.dumps(d))
+    code, out, err = run(capsys, "certify", str(p), *CERT)
+    assert code in (0, 2, 3), (where, value, err)
+    assert_clean(err, code)

@@ -45,7 +45,7 @@ def human(n: float) -> str:
     for unit, size in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
         if abs(n) >= size:
             value = n / size
-            return f"{value:.3g} {unit}" if value < 1e6 else f"{value:.3e} {unit}"
+            return f"{value:.4g} {unit}" if value < 1e6 else f"{value:.3e} {unit}"
     return f"{int(n)} B"
 
 
@@ -215,6 +215,11 @@ def check_memory(estimate: MemoryEstimate, shrink: str = "fewer particles, itera
     if available is None:
         return estimate
     if estimate.total > REFUSE_FRACTION * available:
+        biggest = max(estimate.parts.items(), key=lambda kv: kv[1], default=("", 0))[0]
+        if "scratch" in biggest:
+            shrink = "fewer threads (--threads) or waypoints"
+        elif "history" in biggest:
+            shrink = "fewer iterations"
         raise MemoryBudgetError(
             f"the {estimate.what} would need {estimate.describe()}, but this machine has "
             f"{human(available)} available ({source}); use {shrink}"

@@ -57,6 +57,24 @@ def int_at_least(low: int) -> Any:
     return parse
 
 
+MAX_THREADS = 256
+"""Largest ``--threads`` (each thread holds its own block buffers)."""
+
+
+def int_between(low: int, high: int) -> Any:
+    """An argparse ``type`` accepting integers in ``[low, high]``."""
+    at_least = int_at_least(low)
+
+    def parse(text: str) -> int:
+        value = at_least(text)
+        if value > high:
+            raise argparse.ArgumentTypeError(f"must be an integer <= {high}, got {value}")
+        return value
+
+    parse.__name__ = f"integer in [{low}, {high}]"
+    return parse
+
+
 def add_engine_options(p: argparse.ArgumentParser) -> None:
     """``--engine`` and ``--threads`` (shared by plan, compare and certify)."""
     from staghunt.engine import ENGINE_NAMES
@@ -64,8 +82,8 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--engine", choices=list(ENGINE_NAMES),
                    default="auto", help="numba (compiled), numpy (reference) or auto: numba if "
                    "installed (default: auto)")
-    p.add_argument("--threads", type=int_at_least(1), metavar="N",
-                   help="threads of the numba engine (default: adaptive)")
+    p.add_argument("--threads", type=int_between(1, MAX_THREADS), metavar="N",
+                   help=f"threads of the numba engine, at most {MAX_THREADS} (default: adaptive)")
 
 
 def command(sub: Any, name: str, func: Any, help: str, **kwargs: Any) -> argparse.ArgumentParser:

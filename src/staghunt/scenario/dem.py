@@ -57,6 +57,12 @@ def read_dem_array(path: Path, key: str) -> np.ndarray:
         raise ScenarioError(
             f"DEM in {str(path)!r} holds a non-finite value at row {bad[0]}, column {bad[1]}", key
         )
+    from staghunt.inputs import MAX_MAGNITUDE
+
+    if float(np.max(np.abs(grid))) > MAX_MAGNITUDE:
+        raise ScenarioError(
+            f"DEM in {str(path)!r} holds elevations beyond the supported magnitude {MAX_MAGNITUDE:.0e} m", key
+        )
     grid.setflags(write=False)
     return grid
 
