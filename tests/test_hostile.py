@@ -646,3 +646,49 @@ def test_certify_random_edits_never_crash(tmp_path_factory, capsys, result_data,
     code, out, err = run(capsys, "certify", str(p), *CERT)
     assert code in (0, 2, 3), (where, value, err)
     assert_clean(err, code)
+
+
+# ------------------------------------------------------------------------------------------------
+# The library's entry points
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("kwargs,expect", [
+    ({"seed": -1}, r"seed must be an integer >= 0"),
+    ({"seed": "x"}, r"seed must be an integer >= 0"),
+    ({"seed": True}, r"seed must be an integer >= 0"),
+    ({"method": "nope"}, r"unknown method"),
+    ({"threads": 0}, r"threads"),
+    ({"engine": "fast"}, r"unknown engine"),
+])
+def test_library_plan_refuses(kwargs, expect):
+    import staghunt
+
+    s = staghunt.load_scenario("scenario1")
+    args = {"engine": "numpy", "settings": s.solver.with_(particles=4, iterations=1, waypoints=3), **kwargs}
+    with pytest.raises(ValueError, match=expect):
+        staghunt.plan(s, **args)
+
+
+@pytest.mark.parametrize("edit,expect", [
+    (lambda wp: wp.__setitem__((0, 0, 0), 1e200), r"beyond the supported magnitude"),
+    (lambda wp: wp.__setitem__((0, 0, 2), float("nan")), r"finite"),
+    (lambda wp: wp.__setitem__((1, 1, 2), 60.0), r"leaves the site box.*hmax"),
+])
+def test_library_certify_and_evaluate_refuse(result_data, edit, expect):
+    import numpy as np
+
+    import staghunt
+    from staghunt.analysis.certify import certify_plan
+    from staghunt.io.paths_json import evaluate_paths
+
+    s = staghunt.load_scenario("scenario1")
+    wp = np.array([u["waypoints"] for u in paths_of(result_data)["uavs"]], dtype=float)
+    edit(wp)
+    with pytest.raises(ValueError, match=expect):
+        certify_plan(s, wp, particles=4, iterations=1, engine="numpy")
+    if "site box" in expect:
+        assert evaluate_paths(s, wp)["status"] == "infeasible"
+    else:
+        with pytest.raises(ValueError, match=expect):
+            evaluate_paths(s, wp)

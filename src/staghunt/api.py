@@ -58,6 +58,8 @@ def plan(
         scenario = load_scenario(scenario)
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     settings = settings if settings is not None else scenario.solver
     check_settings(settings)
     if certify is not None:

@@ -135,3 +135,22 @@ def outside_site(model: CostModel, waypoints: np.ndarray, names: list[str]) -> l
         out.append(f"{names[n]} waypoint {k + 1} leaves the site box: {labels[c]} = {v:.6g} is {side} "
                    f"site.{bound} = {limit:g}")
     return out
+
+
+def check_waypoints(waypoints: object, n_uavs: int, what: str = "waypoints") -> np.ndarray:
+    """``waypoints`` as a float ``(N, K, 3)`` array, or ``ValueError`` (one line) when it has
+    another shape, holds a non-finite number or a magnitude beyond
+    :data:`staghunt.inputs.MAX_MAGNITUDE` (absurd coordinates overflow the costs)."""
+    from staghunt.inputs import MAX_MAGNITUDE
+
+    try:
+        wp = np.asarray(waypoints, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{what}: expected numbers in an (N, K, 3) array") from None
+    if wp.ndim != 3 or wp.shape[0] != n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
+        raise ValueError(f"{what}: expected shape (N={n_uavs}, K>=1, 3), got {wp.shape}")
+    if not np.all(np.isfinite(wp)):
+        raise ValueError(f"{what}: must be finite numbers")
+    if np.max(np.abs(wp)) > MAX_MAGNITUDE:
+        raise ValueError(f"{what}: a coordinate beyond the supported magnitude {MAX_MAGNITUDE:.0e}")
+    return wp

@@ -52,12 +52,19 @@ def certify_plan(
     threads: int | None = None,
 ) -> Certificate:
     """:func:`staghunt.solvers.response.certify_plan` with the searches run by ``engine`` (see
-    :func:`staghunt.engine.get_engine`)."""
+    :func:`staghunt.engine.get_engine`). Refuses (``ValueError``) waypoints that are not a finite
+    ``(N, K, 3)`` array of moderate magnitude or that leave the site box, and a budget that
+    cannot fit in memory."""
     from staghunt.budget import check_memory, estimate_certify
+    from staghunt.checks import check_waypoints, outside_site
+    from staghunt.costs import CostModel
 
     resolved = get_engine(engine, threads)
-    wp = np.asarray(waypoints)
-    if wp.ndim == 3 and isinstance(particles, int) and isinstance(iterations, int):
+    wp = check_waypoints(waypoints, scenario.n_uavs)
+    outside = outside_site(CostModel.from_scenario(scenario), wp, [u.name for u in scenario.team])
+    if outside:  # no certificate for a plan the site does not hold
+        raise ValueError(outside[0] + (f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""))
+    if isinstance(particles, int) and isinstance(iterations, int):
         check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
                                       particles, iterations, resolved, threads),
                      shrink="fewer certificate particles or iterations")

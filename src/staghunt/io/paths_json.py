@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from staghunt.checks import outside_site, violations
+from staghunt.checks import check_waypoints, outside_site, violations
 from staghunt.costs import CostModel, evaluate
 from staghunt.io.result_json import (
     INFINITY_NOTE,
@@ -169,12 +169,7 @@ def evaluate_paths(scenario: Scenario, waypoints: np.ndarray) -> dict[str, Any]:
     ``single`` (``J_s``), ``formation`` (``J_f``), the five ``terms`` unweighted and
     ``weighted_terms`` (``w_i * term_i``, ``0 * inf = 0``).
     """
-    wp = np.asarray(waypoints, dtype=float)
-    n = scenario.n_uavs
-    if wp.ndim != 3 or wp.shape[0] != n or wp.shape[2] != 3 or wp.shape[1] < 1:
-        raise ValueError(f"waypoints must have shape (N={n}, K>=1, 3), got {wp.shape}")
-    if not np.all(np.isfinite(wp)):
-        raise ValueError("waypoints must be finite")
+    wp = check_waypoints(waypoints, scenario.n_uavs)
     model = CostModel.from_scenario(scenario)
     names = [u.name for u in scenario.team]
     with np.errstate(all="ignore"):  # extreme (validated) inputs give inf costs, not warnings
