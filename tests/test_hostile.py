@@ -692,3 +692,29 @@ def test_library_certify_and_evaluate_refuse(result_data, edit, expect):
     else:
         with pytest.raises(ValueError, match=expect):
             evaluate_paths(s, wp)
+
+
+def test_certify_out_never_replaces_a_special_file(tmp_path, capsys, result_file):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    refused(capsys, "certify", str(result_file), *CERT, "--out", str(fifo), expect=r"not a regular file")
+    assert fifo.exists() and not fifo.is_file()
+
+
+def test_atomic_write_refuses_special_files(tmp_path):
+    from staghunt.io.atomic import write_text_atomic
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    with pytest.raises(ValueError, match="not a regular file"):
+        write_text_atomic("x", fifo)
+    with pytest.raises(ValueError, match="a directory"):
+        write_text_atomic("x", tmp_path)
+    assert not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]
+
+
+def test_plan_refuses_a_fifo_named_result_json_before_the_search(tmp_path, capsys):
+    out = tmp_path / "out"
+    out.mkdir()
+    os.mkfifo(out / "result.json")
+    refused(capsys, "plan", "scenario1", *TINY, "--out", str(out), expect=r"not a regular file")

@@ -232,6 +232,9 @@ def cmd_certify(args: argparse.Namespace) -> int:
             check_path_lengths(target, "--out")
             if target.is_dir():
                 raise ValueError(f"--out {str(target)!r} is a directory; give a file name")
+            from staghunt.io.atomic import check_replaceable
+
+            check_replaceable(target)  # before the search: never replace a device or a FIFO
             if not target.parent.is_dir() and str(target.parent):
                 raise ValueError(f"--out {str(target)!r}: no such directory {str(target.parent)!r}")
         data = read_result(args.result)  # once: RESULT.json may be a pipe (<(cat result.json))

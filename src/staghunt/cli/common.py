@@ -285,6 +285,9 @@ def check_out_dir(out_dir: Path, file: str | None = None) -> None:
             raise ValueError(f"{label} is not writable")
         if (out_dir / file).is_dir():
             raise ValueError(f"{label} holds a directory named {file}")
+        from staghunt.io.atomic import check_replaceable
+
+        check_replaceable(out_dir / file)  # a FIFO or device named result.json: refused now
         return
     parent = out_dir.parent if file is not None else out_dir
     while not parent.exists() and parent != parent.parent:

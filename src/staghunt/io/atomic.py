@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import stat
 import tempfile
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,6 +18,7 @@ def atomic_file(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[An
     """
     dest = Path(path)
     directory = dest.parent if str(dest.parent) else Path(".")
+    check_replaceable(dest)
     fd, tmp = tempfile.mkstemp(prefix=f".{dest.name}.", suffix=".tmp", dir=directory)
     try:
         kwargs = {"encoding": "utf-8", "newline": "\n"} if "b" not in mode else {}
@@ -33,6 +35,20 @@ def atomic_file(path: str | os.PathLike[str], mode: str = "w") -> Iterator[IO[An
             pass
         raise
     _fsync_dir(directory)
+
+
+def check_replaceable(dest: Path) -> None:
+    """Raise ``ValueError`` if ``dest`` exists and is not a regular file (a directory, a device
+    such as ``/dev/full``, a FIFO, a socket): an atomic write would replace it by a file."""
+    try:
+        mode = os.stat(dest).st_mode
+    except FileNotFoundError:
+        return
+    except OSError as exc:
+        raise ValueError(f"{dest}: cannot write: {exc.strerror or exc}") from None
+    if not stat.S_ISREG(mode):
+        kind = "a directory" if stat.S_ISDIR(mode) else "not a regular file (a device, FIFO or socket)"
+        raise ValueError(f"{dest}: is {kind}; refusing to replace it (give a file name)")
 
 
 def write_text_atomic(text: str, path: str | os.PathLike[str]) -> Path:
