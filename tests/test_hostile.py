@@ -718,3 +718,37 @@ def test_plan_refuses_a_fifo_named_result_json_before_the_search(tmp_path, capsy
     out.mkdir()
     os.mkfifo(out / "result.json")
     refused(capsys, "plan", "scenario1", *TINY, "--out", str(out), expect=r"not a regular file")
+
+
+def test_ctrl_c_during_the_search(tmp_path):
+    import signal
+    import time
+
+    env = dict(os.environ, PYTHONPATH=SRC + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    proc = subprocess.Popen([sys.executable, "-u", "-m", "staghunt", "plan", "scenario1", "--particles", "20",
+                             "--iterations", "1000000", "--waypoints", "3", "--engine", "numpy", "--no-certify",
+                             "--no-plots", "--out", "out"], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 30
+    while time.monotonic() < deadline and not (tmp_path / "out").exists():
+        time.sleep(0.05)
+    time.sleep(0.3)
+    proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=30)
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err and err.splitlines()[-1] == "staghunt: interrupted"
+    assert not (tmp_path / "out" / "result.json").exists()
+    no_leftovers(tmp_path / "out")
+
+
+def test_evaluate_waypoints_that_cannot_fit(tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(budget, "available_memory", lambda: (64 * 2**20, "MemAvailable"))
+    scenario = __import__("staghunt").load_scenario("scenario1")
+    entries = []
+    for u in scenario.team:
+        xs = [u.start[0] + (u.goal[0] - u.start[0]) * (i + 1) / 20001 for i in range(20000)]
+        ys = [u.start[1] + (u.goal[1] - u.start[1]) * (i + 1) / 20001 for i in range(20000)]
+        entries.append({"waypoints": [[x, y, 20.0] for x, y in zip(xs, ys)]})
+    p = tmp_path / "many.json"
+    p.write_text(json.dumps({"uavs": entries}))
+    refused(capsys, "evaluate", "scenario1", str(p), expect=r"evaluation would need about .*fewer waypoints")

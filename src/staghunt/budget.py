@@ -204,6 +204,15 @@ def _first_time(estimate: MemoryEstimate) -> bool:
     return True
 
 
+def estimate_evaluate(n_uavs: int, n_obstacles: int, waypoints: int, population: int = 1) -> MemoryEstimate:
+    """Peak memory of evaluating ``population`` team plans with the NumPy reference
+    (``staghunt evaluate``, the checks of a result)."""
+    parts = _swarm_parts("numpy", int(population), 0, int(waypoints), 0, 1, int(n_uavs), int(n_obstacles), 1)
+    parts = {k: v for k, v in parts.items() if k == "evaluation temporaries"}
+    base = BASELINE_NUMPY_BYTES
+    return MemoryEstimate(total=base + sum(parts.values()), baseline=base, parts=parts, what="evaluation")
+
+
 def check_memory(estimate: MemoryEstimate, shrink: str = "fewer particles, iterations or waypoints",
                  available: int | None = None, warn: Callable[[str], None] | None = None) -> MemoryEstimate:
     """Raise :class:`MemoryBudgetError` if ``estimate`` cannot fit in the available memory;

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from staghunt.budget import check_memory, estimate_evaluate
 from staghunt.checks import check_waypoints, outside_site, violations
 from staghunt.costs import CostModel, evaluate
 from staghunt.io.result_json import (
@@ -170,6 +171,8 @@ def evaluate_paths(scenario: Scenario, waypoints: np.ndarray) -> dict[str, Any]:
     ``weighted_terms`` (``w_i * term_i``, ``0 * inf = 0``).
     """
     wp = check_waypoints(waypoints, scenario.n_uavs)
+    check_memory(estimate_evaluate(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1]),
+                 shrink="fewer waypoints")
     model = CostModel.from_scenario(scenario)
     names = [u.name for u in scenario.team]
     with np.errstate(all="ignore"):  # extreme (validated) inputs give inf costs, not warnings
