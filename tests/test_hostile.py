@@ -752,3 +752,18 @@ def test_evaluate_waypoints_that_cannot_fit(tmp_path, capsys, monkeypatch):
     p = tmp_path / "many.json"
     p.write_text(json.dumps({"uavs": entries}))
     refused(capsys, "evaluate", "scenario1", str(p), expect=r"evaluation would need about .*fewer waypoints")
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(st.lists(st.one_of(st.integers(min_value=-5, max_value=10**13).map(str),
+                          st.floats(allow_nan=True).map(repr), st.text(max_size=6)),
+                min_size=3, max_size=3))
+def test_dry_run_random_budgets(capsys, monkeypatch, values):
+    monkeypatch.setattr(budget, "available_memory", lambda: (8 * 2**30, "MemAvailable"))
+    argv = ["plan", "scenario1", "--dry-run", "--engine", "numpy", "--particles=" + values[0],
+            "--iterations=" + values[1], "--waypoints=" + values[2]]
+    code, out, err = run(capsys, *argv)
+    assert code in (0, 2)
+    assert_clean(err, code)
+    if code == 0:
+        assert "memory: about" in out

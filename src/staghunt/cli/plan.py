@@ -151,6 +151,9 @@ def _dry_run(scenario: Any, settings: Any, args: argparse.Namespace, certify: An
     have = "unknown" if avail is None else f"{human(avail)} available ({source}), {est.total / avail:.1%} of it"
     print(f"memory: {est.describe()}; {have}")
     print(f"output: {out_dir / 'result.json'} (not written: dry run)")
+    from staghunt.budget import check_memory
+
+    check_memory(est, available=avail, warn=say)  # the run would be refused: exit 2 with the reason
     return EXIT_OK
 
 
