@@ -75,8 +75,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         with np.errstate(all="ignore"), warnings.catch_warnings():
             # Validated extremes may still reach inf in NumPy: costs are then inf (infeasible),
-            # never a warning on the terminal.
-            warnings.simplefilter("ignore", RuntimeWarning)
+            # never a warning on the terminal; library warnings are for developers
+            # (STAGHUNT_DEBUG=1 shows them).
+            if not os.environ.get("STAGHUNT_DEBUG"):
+                warnings.simplefilter("ignore")
             return _main(argv)
     except BrokenPipeError:
         _silence_stdout()
