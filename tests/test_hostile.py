@@ -767,3 +767,17 @@ def test_dry_run_random_budgets(capsys, monkeypatch, values):
     assert_clean(err, code)
     if code == 0:
         assert "memory: about" in out
+
+
+def test_absurd_budgets_in_the_library(monkeypatch):
+    import staghunt
+
+    s = staghunt.load_scenario("scenario1")
+    for changes in ({"particles": 10**400}, {"iterations": 10**30}, {"waypoints": 10**12}):
+        with pytest.raises(budget.MemoryBudgetError, match="would need"):
+            staghunt.plan(s, settings=s.solver.with_(**changes), engine="numpy")
+
+
+def test_scenario_budget_beyond_magnitude(tmp_path, capsys):
+    p = write(tmp_path, "s.toml", toml_with(particles="1" + "0" * 30))
+    refused(capsys, "show", str(p), expect=r"solver\.particles: .*no budget this large")

@@ -42,6 +42,8 @@ class MemoryBudgetError(ValueError):
 
 def human(n: float) -> str:
     """Bytes as ``1.5 GB`` / ``320 MB`` (powers of 1024)."""
+    if n >= 2**40 * 10**6:
+        return f"more than {2**40 * 10**6 // 2**40:.0e} TB"  # also ints beyond float's range
     for unit, size in (("TB", 2**40), ("GB", 2**30), ("MB", 2**20), ("kB", 2**10)):
         if abs(n) >= size:
             value = n / size

@@ -174,5 +174,7 @@ def check_magnitudes(data: Any, limit: float = MAX_MAGNITUDE, depth_limit: int =
             if big and not (isinstance(value, float) and math.isinf(value)):
                 text = f"{float(value):.3g}" if not isinstance(value, int) or value.bit_length() < 1000 \
                     else f"an integer of {value.bit_length()} bits"
+                hint = ("no budget this large fits in memory or time" if where and where[0] == "solver"
+                        else "use metres and moderate weights")
                 raise ValueError(f"{key_path(where)}: {text} is beyond the supported magnitude "
-                                 f"{limit:.0e} (use metres and moderate weights)")
+                                 f"{limit:.0e} ({hint})")
