@@ -781,3 +781,12 @@ def test_absurd_budgets_in_the_library(monkeypatch):
 def test_scenario_budget_beyond_magnitude(tmp_path, capsys):
     p = write(tmp_path, "s.toml", toml_with(particles="1" + "0" * 30))
     refused(capsys, "show", str(p), expect=r"solver\.particles: .*no budget this large")
+
+
+def test_settings_that_cannot_certify_are_refused_before_the_search(tmp_path, capsys):
+    p = write(tmp_path, "c0.toml", toml_with(c1="0", c2="0"))
+    out = tmp_path / "out"
+    refused(capsys, "plan", str(p), *TINY, "--out", str(out), expect=r"c1 and c2 are both 0.*--no-certify")
+    assert not out.exists()
+    code, stdout, err = run(capsys, "plan", str(p), *TINY, "--no-certify", "--out", str(out))
+    assert code in (0, 3) and (out / "result.json").is_file()

@@ -56,17 +56,8 @@ def plan(
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     settings = settings if settings is not None else scenario.solver
-    check_settings(settings)
-    if certify is not None:
-        certify.check()
-    resolved = get_engine(engine, threads)
-    # Before anything is allocated: a run that cannot fit in memory is refused with one line.
-    check_memory(estimate_plan(scenario, settings, method, resolved, threads, certify))
+    resolved = check_plan(scenario, method, seed, settings, engine, threads, certify)
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
     rng = np.random.default_rng(seed)
@@ -85,6 +76,39 @@ def plan(
                         iterations=certify.iterations, seed=seed, epsilon=certify.epsilon,
                         settings=settings, progress=certify_progress, runner=resolved.run_swarm)
     return replace(result, certificate=cert, certificate_time_s=time.perf_counter() - t0)
+
+
+def check_plan(
+    scenario: Scenario,
+    method: str,
+    seed: int,
+    settings: SolverSettings,
+    engine: "str | Engine" = "auto",
+    threads: int | None = None,
+    certify: CertifyOptions | None = None,
+    warn: Callable[[str], None] | None = None,
+) -> Engine:
+    """Every check :func:`plan` makes before it starts (the CLI makes them before it creates the
+    output directory): the method, the seed, the settings, the certificate's budget and whether
+    these settings can certify at all, the engine, and whether the run fits in memory
+    (:mod:`staghunt.budget`; ``warn`` receives the warning above a quarter of the available
+    memory). Returns the resolved engine; raises ``ValueError`` with one line."""
+    if method not in METHODS:
+        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
+    check_settings(settings)
+    if certify is not None:
+        certify.check()
+        if settings.c1 == 0 and settings.c2 == 0 and certify.iterations > 0:
+            # Refused by the certificate itself, but only after the search: check it now.
+            raise ValueError("solver settings: c1 and c2 are both 0, so the certificate's search "
+                             "cannot move towards any better path; give c1 or c2 > 0, or skip the "
+                             "certificate (--no-certify)")
+    resolved = get_engine(engine, threads)
+    # Before anything is allocated: a run that cannot fit in memory is refused with one line.
+    check_memory(estimate_plan(scenario, settings, method, resolved, threads, certify), warn=warn)
+    return resolved
 
 
 validate_settings = check_settings

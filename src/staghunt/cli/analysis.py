@@ -152,13 +152,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         settings = budget_settings(scenario, args)
         out = Path(args.out) if args.out is not None else Path("runs") / f"{safe_name(scenario.name)}-compare"
         check_out_dir(out)
-        from staghunt.budget import check_memory, estimate_plan
-        from staghunt.engine import get_engine
+        from staghunt.api import check_plan
 
-        engine = get_engine(args.engine, args.threads)
-        for m in methods:  # every run must fit before the first one starts
-            check_memory(estimate_plan(scenario, settings, m, engine, args.threads, certify_options(args)),
-                         warn=say)
+        for m in methods:  # every run must be possible (and fit in memory) before the first starts
+            check_plan(scenario, m, 0, settings, args.engine, args.threads, certify_options(args), warn=say)
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
     certify = certify_options(args)

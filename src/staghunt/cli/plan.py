@@ -87,12 +87,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     certify = certify_options(args)
     if args.dry_run:
         return _dry_run(scenario, settings, args, certify, out_dir)
-    from staghunt.budget import check_memory, estimate_plan
-    from staghunt.engine import get_engine
+    from staghunt.api import check_plan
 
-    # Every check before the search: the budget must fit in memory, the directory must exist.
-    check_memory(estimate_plan(scenario, settings, args.method, get_engine(args.engine, args.threads),
-                               args.threads, certify), warn=say)
+    # Every check before the search and before the directory is made: the method, seed and
+    # settings, whether they can certify, the engine, and the memory the run needs.
+    check_plan(scenario, args.method, args.seed, settings, args.engine, args.threads, certify, warn=say)
     try:  # before the search: a plan must never be computed only to be thrown away
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
