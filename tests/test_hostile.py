@@ -732,13 +732,12 @@ def test_ctrl_c_during_the_search(tmp_path):
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and not (tmp_path / "out").exists():
         time.sleep(0.05)
-    time.sleep(0.3)
+    time.sleep(0.5)
     proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=30)
     assert proc.returncode == 130, err
     assert "Traceback" not in err and err.splitlines()[-1] == "staghunt: interrupted"
-    assert not (tmp_path / "out" / "result.json").exists()
-    no_leftovers(tmp_path / "out")
+    assert not (tmp_path / "out").exists()  # the directory it made for the run is removed again
 
 
 def test_evaluate_waypoints_that_cannot_fit(tmp_path, capsys, monkeypatch):

@@ -92,6 +92,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     # Every check before the search and before the directory is made: the method, seed and
     # settings, whether they can certify, the engine, and the memory the run needs.
     check_plan(scenario, args.method, args.seed, settings, args.engine, args.threads, certify, warn=say)
+    created = not out_dir.exists()
     try:  # before the search: a plan must never be computed only to be thrown away
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -101,6 +102,13 @@ def cmd_plan(args: argparse.Namespace) -> int:
     try:
         result = plan(scenario, args.method, args.seed, settings, reporter, certify=certify,
                       certify_progress=reporter.certifying, **engine_kwargs(args))
+    except BaseException:
+        if created:  # interrupted or failed: leave no empty directory behind
+            try:
+                out_dir.rmdir()
+            except OSError:
+                pass
+        raise
     finally:
         reporter.close()
     # Files first, terminal second: a closed stdout (| head) cannot lose the plan or its figures.
