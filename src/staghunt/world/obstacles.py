@@ -37,6 +37,9 @@ class Prism:
     top: float
     name: str = ""
     kind: PrismKind = "prism"
+    agl: tuple[float, float] | None = None
+    """``(base, height)`` in metres above the ground as the scenario gave them (``None`` for a
+    no-fly zone); written back by :func:`staghunt.scenario.scenario_to_dict`."""
 
     @property
     def is_nofly(self) -> bool:
