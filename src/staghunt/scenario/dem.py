@@ -132,7 +132,9 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
     ys = b.ymin + cell_size * np.arange(rows)
     gx, gy = np.meshgrid(xs, ys)  # (rows, cols)
     X, Y = site_to_crs(origin, crs, gx, gy)
-    col, row = inverse * (np.asarray(X), np.asarray(Y))
+    X, Y = np.asarray(X), np.asarray(Y)
+    col = inverse.a * X + inverse.b * Y + inverse.c
+    row = inverse.d * X + inverse.e * Y + inverse.f
     u = np.asarray(col) - 0.5  # fractional pixel-centre indices
     v = np.asarray(row) - 0.5
     outside = ~((u >= -1e-9) & (u <= width - 1 + 1e-9) & (v >= -1e-9) & (v <= height - 1 + 1e-9))
