@@ -33,10 +33,11 @@ def check_polygon(points: Sequence[Sequence[float]], key: str, what: str = "poly
         raise ScenarioError(f"{what} needs at least 3 distinct vertices, got {len(pts)}", key)
     if not all(math.isfinite(v) for p in pts for v in p):
         raise ScenarioError(f"{what} has a non-finite coordinate", key)
-    poly = Polygon(pts)
-    if poly.is_empty or poly.area <= 0.0:
+    v = np.asarray(pts) - pts[0]
+    if np.linalg.matrix_rank(v, tol=1e-9 * max(1.0, float(np.abs(v).max()))) < 2:
         raise ScenarioError(f"{what} is empty (zero area): its vertices are collinear or repeated", key)
-    if not poly.is_valid:
+    poly = Polygon(pts)
+    if not poly.is_valid or poly.area <= 0.0:
         raise ScenarioError(f"{what} is not a simple polygon: {explain_validity(poly)}", key)
     return tuple(pts)
 
