@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.filterwarnings("ignore::PendingDeprecationWarning")
 rasterio = pytest.importorskip("rasterio")
 pyproj = pytest.importorskip("pyproj")
 

@@ -80,6 +80,9 @@ violations (2) to ``par`` at ``N_PAR + SOLO_STRIDE * n``. Then only the swarm-fo
 ``J_s`` terms are computed, only pairs with a player are checked, the violation is the players'
 own, and ``J`` of the other UAVs is NaN (as :meth:`SwarmProblem.evaluate`)."""
 
+PRUNE_MIN_UAVS = 4  # separation pairs are pruned by segment bounding boxes for N above this
+PRUNE_GUARD = 1e-6  # m added to a pair's limit before a box gap counts as clear
+
 MODE_INIT = 0  # draw uniform positions, evaluate, personal bests = positions
 MODE_STEP = 1  # PSO step, evaluate, personal bests by dominance
 MODE_EVALUATE = 2  # evaluate the waypoints ``wp`` (no swarm state touched)
@@ -486,8 +489,9 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     Scratch: ``form (3, N, S, B)`` = ``E`` (eq. 5), nearest squared distance at the waypoints,
     along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments; ``rx``,
     ``ry``, ``rz`` ``(K+2, B)`` relative positions of a pair; ``tmp (>= S, B)``; ``acc``,
-    ``acc2``, ``flag`` ``(B,)``. All pairs are computed: skipping far ones by bounding boxes
-    measured slower for formations (every pair is near somewhere). With ``solo`` (a problem with
+    ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a pair's segments whose
+    bounding boxes over the block's lanes lie farther apart than its separation limit are
+    skipped (exact; see the comment in the body). With ``solo`` (a problem with
     fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``.
     """
     N = px.shape[0]
@@ -530,10 +534,53 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
         for j in range(S):
             _fill(near2[n, j], nb, np.inf)
             _fill(seg2[n, j], nb, np.inf)
+    # Pruning past small N: per UAV and segment, the bounding box of the segment over the
+    # block's lanes. A pair whose boxes on segment j are farther apart than its separation limit
+    # (plus a guard) is farther apart than the limit all along that segment in every lane, so
+    # its distances there cannot make a collision or a deficit: they are skipped (an entry of
+    # ``near2``/``seg2`` may then stay above its true value, but only where both exceed every
+    # limit, which decides nothing). Exact: the same collisions, deficits and J_f.
+    prune = N > PRUNE_MIN_UAVS
+    box = np.empty((6, N, S)) if prune else np.empty((6, 1, 1))
+    near = np.ones(S, dtype=np.bool_)
+    if prune:
+        for n in range(N):
+            for j in range(S):
+                x0 = np.inf
+                x1 = -np.inf
+                y0 = np.inf
+                y1 = -np.inf
+                z0 = np.inf
+                z1 = -np.inf
+                for i in range(j, j + 2):
+                    for b in range(nb):
+                        x0 = min(x0, px[n, i, b])
+                        x1 = max(x1, px[n, i, b])
+                        y0 = min(y0, py[n, i, b])
+                        y1 = max(y1, py[n, i, b])
+                        z0 = min(z0, pz[n, i, b])
+                        z1 = max(z1, pz[n, i, b])
+                box[0, n, j] = x0
+                box[1, n, j] = x1
+                box[2, n, j] = y0
+                box[3, n, j] = y1
+                box[4, n, j] = z0
+                box[5, n, j] = z1
     for a in range(N):
         for c in range(a + 1, N):
             if solo and not (_is_player(players, a) or _is_player(players, c)):
                 continue
+            if prune:
+                reach = max(uav[a, 10], uav[c, 10]) + PRUNE_GUARD
+                any_near = False
+                for j in range(S):
+                    g = max(max(box[0, c, j] - box[1, a, j], box[0, a, j] - box[1, c, j]),
+                            max(max(box[2, c, j] - box[3, a, j], box[2, a, j] - box[3, c, j]),
+                                max(box[4, c, j] - box[5, a, j], box[4, a, j] - box[5, c, j])))
+                    near[j] = not (g > reach)
+                    any_near = any_near or near[j]
+                if not any_near:
+                    continue
             for j in range(K + 2):  # relative positions p_a - p_c (NumPy's ``rel``)
                 for b in range(nb):
                     rx[j, b] = px[a, j, b] - px[c, j, b]
@@ -542,6 +589,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 for b in range(nb):
                     rz[j, b] = pz[a, j, b] - pz[c, j, b]
             for k in range(K):
+                if not near[k]:  # free waypoint k + 1 ends segment k
+                    continue
                 for b in range(nb):
                     tmp[k, b] = (rx[k + 1, b] * rx[k + 1, b] + ry[k + 1, b] * ry[k + 1, b]) + rz[k + 1, b] * rz[k + 1, b]
                 for b in range(nb):
@@ -551,6 +600,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             if not continuous:
                 continue
             for j in range(S):
+                if not near[j]:
+                    continue
                 for b in range(nb):
                     x0 = rx[j, b]
                     y0 = ry[j, b]
