@@ -143,3 +143,25 @@ def test_engines_agree_on_shapes(K, clearance):
     assert_costs_agree(model, wp)
     c = evaluate(model, wp)
     assert np.isinf(c.terms[:, :, 1]).any() and (c.terms[:, :, 1] > 0).mean() > 0.2
+
+
+@pytest.mark.parametrize("n", [6, 12])
+@pytest.mark.parametrize("continuous", [True, False])
+def test_pruned_separation_is_exact(n, continuous):
+    """Past N = 4 the kernel skips pairs by bounding boxes: the same costs and decisions."""
+    pytest.importorskip("numba")
+    from staghunt.engine import kernels as kn
+
+    assert n > kn.PRUNE_MIN_UAVS
+    model = make_model(n, continuous=continuous)
+    K = 6
+    rng = np.random.default_rng(n)
+    t = (np.arange(1, K + 1) / (K + 1))[None, None, :, None]
+    line = model.starts[None, :, None, :] + t * (model.goals - model.starts)[None, :, None, :]
+    wp = line + rng.normal(0.0, 0.5, size=(64, n, K, 3))  # converged: boxes of far pairs apart
+    wp[:14] = population(model, 14, K, seed=n)
+    for i, gap in enumerate((4.0, 4.0 + 1e-9, 4.0 - 1e-9, 4.0 + 1e-6, 4.0 + 2e-6)):
+        wp[20 + i, 3] = wp[20 + i, 2] + np.array([gap, 0.0, 0.0])  # UAV 3 at a gap from UAV 2
+    assert_costs_agree(model, wp)
+    c = evaluate(model, wp)
+    assert np.isinf(c.formation[20:23]).any() and np.isfinite(c.formation[30:]).any()
