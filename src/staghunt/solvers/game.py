@@ -11,9 +11,11 @@ one generator:
    a feasible allocation with zero formation error that no UAV can improve much alone.
 2. **Best-response rounds**: the UAVs in turn re-optimise their own path with the others fixed
    (single-UAV SPSO on ``J_n``, :func:`~staghunt.solvers.problem.solo_problem`), warm-started from
-   the current path, the UAV's earlier replies and perturbations of the current path
-   (:data:`LOCAL_SHARE` of the particles). A reply replaces the path only if the plan stays
-   feasible and ``J_n`` drops by more than :data:`ACCEPT_TOL` (relative). With the paper's
+   the current path, the UAV's earlier replies, its :func:`formation_target` and perturbations of
+   the current path (:data:`LOCAL_SHARE` of the particles), then refined by :func:`polish` (a
+   pattern search in the site frame, :data:`POLISH_SHARE` of the reply's budget). A reply
+   replaces the path only if the plan stays feasible and ``J_n`` drops by more than
+   :data:`ACCEPT_TOL` (relative). With the paper's
    symmetric edge weights the game is a weighted potential game (docs/model.md, eq. (17)):
    every accepted reply lowers ``Phi = sum_n J_s,n / beta_n + 1/2 sum_n J_f,n``, so the rounds
    cannot cycle.
@@ -37,6 +39,7 @@ from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import solo_problem
+from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.solvers.rigid import rigid_problem
 from staghunt.solvers.swarm import Progress
 
@@ -59,9 +62,9 @@ GROW_BELOW = 0.005
 """Double the reply budget after a round whose largest relative gain is below this."""
 STOP_FRACTION = 0.25
 """Converged: a verification-strength round with every gain below ``epsilon * STOP_FRACTION``."""
-EPSILON = 0.01
+EPSILON = DEFAULT_EPSILON
 """The relative Nash gap the method aims below (the certificate's default tolerance)."""
-VERIFY_EVALUATIONS = 400 * 201
+VERIFY_EVALUATIONS = DEFAULT_PARTICLES * (DEFAULT_ITERATIONS + 1)
 """A reply search at least this strong (the default certificate's) may declare convergence."""
 MIN_REPLY_ITERATIONS = 5
 POLISH_SHARE = 0.25
