@@ -258,3 +258,17 @@ def test_bad_input_exit_2_one_line(tmp_path, capsys):
         assert str(path) in err and needle in err, f"{name}: {err}"
         assert "Traceback" not in err
         assert not out.exists(), name
+
+
+def test_site_wedge_plans_feasible_on_a_small_budget(tmp_path):
+    out = tmp_path / "run"
+    code = main(["plan", "site_wedge", "--particles", "100", "--iterations", "60", "--no-certify", "--no-plots",
+                 "--quiet", "--out", str(out)])
+    assert code == 0
+    r = json.loads((out / "result.json").read_text())
+    assert r["status"] == "feasible" and r["metrics"]["collision_free_continuous"]
+    # The result's scenario (GeoTIFF ground, prisms, no-fly zone, ceiling) reads back.
+    from staghunt.scenario import scenario_from_dict
+
+    s = scenario_from_dict(r["scenario"], name="x")
+    assert s.n_uavs == 8 and len(s.world.prisms) == 6 and np.isfinite(s.world.ceiling)
