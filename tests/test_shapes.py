@@ -13,7 +13,7 @@ from staghunt.costs import evaluate
 from staghunt.costs.prisms import prism_distance, prism_threat
 from staghunt.world import Prism, box_polygon, prism_arrays
 
-from test_engine import assert_costs_agree, frozen, make_model, population
+from test_engine import assert_costs_agree, dem, frozen, make_model, population
 
 R_BODY = 1.0
 DELTA = 10.0
@@ -123,11 +123,14 @@ def test_ceiling():
     assert c.terms[1, 0, 1] == np.inf and c.violation[1, 0, 0] == pytest.approx(0.5)
 
 
+@pytest.mark.parametrize("ground", ["flat", "bilinear", "nearest-float32"])
 @pytest.mark.parametrize("clearance", [0.0, 1.5])
 @pytest.mark.parametrize("K", [1, 4, 10])
-def test_engines_agree_on_shapes(K, clearance):
+def test_engines_agree_on_shapes(K, clearance, ground):
     pytest.importorskip("numba")
-    model = with_prisms(make_model(3), list(SHAPES.values()), ceiling=45.0, clearance=clearance)
+    terrain = None if ground == "flat" else (dem("bilinear", np.float64) if ground == "bilinear"
+                                             else dem("nearest", np.float32))
+    model = with_prisms(make_model(3, terrain=terrain), list(SHAPES.values()), ceiling=45.0, clearance=clearance)
     wp = population(model, 96, K, seed=K)
     rng = np.random.default_rng(K)
     wp[40:60, :, :, 2] = rng.choice([23.9, 24.0, 29.0, 30.0, 31.0, 44.0, 45.0, 46.0], size=(20, 3, K))
