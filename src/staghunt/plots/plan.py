@@ -241,6 +241,7 @@ def _prisms_3d(ax: object, scenario: object, gmin: float, ztop: float) -> None:
     """Prisms (buildings, boxes) as translucent walls and roofs from their base (or the ground)
     to their top; no-fly zones as red walls over the whole height of the figure."""
     terrain = scenario.world.terrain  # type: ignore[attr-defined]
+    placed: list[tuple[float, float]] = []
     for p in scenario.world.prisms:  # type: ignore[attr-defined]
         v = np.asarray(p.polygon + (p.polygon[0],), dtype=float)
         ground = np.asarray(terrain.height(v[:, 0], v[:, 1]), dtype=float)
@@ -253,9 +254,21 @@ def _prisms_3d(ax: object, scenario: object, gmin: float, ztop: float) -> None:
         ax.plot(v[:, 0], v[:, 1], hi, color=edge, lw=1.0, zorder=1.1)  # type: ignore[attr-defined]
         ax.plot(v[:, 0], v[:, 1], lo, color=edge, lw=0.8, zorder=1.1)  # type: ignore[attr-defined]
         if p.name:
-            ax.text(v[:-1, 0].mean(), v[:-1, 1].mean(), hi[0] + 0.03 * (ztop - gmin), p.name,  # type: ignore[attr-defined]
+            cx, cy = _free_spot(placed, v[:-1, 0].mean(), v[:-1, 1].mean(), scenario)
+            ax.text(cx, cy, hi[0] + 0.03 * (ztop - gmin), p.name,  # type: ignore[attr-defined]
                     fontsize=8, ha="center", va="bottom", zorder=6,
                     bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none", alpha=0.7))
+
+
+def _free_spot(placed: list[tuple[float, float]], x: float, y: float, scenario: object) -> tuple[float, float]:
+    """A label position near ``(x, y)`` at least 4 % of the site's size from the labels already
+    ``placed`` (moved north step by step), recorded in ``placed``."""
+    b = scenario.world.bounds  # type: ignore[attr-defined]
+    step = 0.04 * max(b.xmax - b.xmin, b.ymax - b.ymin)
+    while any(abs(x - px) < 2.5 * step and abs(y - py) < step for px, py in placed):
+        y += step
+    placed.append((x, y))
+    return x, y
 
 
 def _prisms_top(ax: object, scenario: object, delta: float) -> list[object]:
@@ -264,6 +277,7 @@ def _prisms_top(ax: object, scenario: object, delta: float) -> list[object]:
     from matplotlib.patches import Patch
 
     prisms = scenario.world.prisms  # type: ignore[attr-defined]
+    placed: list[tuple[float, float]] = []
     for p in prisms:
         v = np.asarray(p.polygon, dtype=float)
         if p.is_nofly:
@@ -282,8 +296,8 @@ def _prisms_top(ax: object, scenario: object, delta: float) -> list[object]:
         if not p.is_nofly and np.isfinite(p.top):
             label += f" (top z {p.top:.0f} m)"
         if label:
-            ax.annotate(label, (v[:, 0].mean(), v[:, 1].mean()), ha="center", va="center",  # type: ignore[attr-defined]
-                        fontsize=7.5, zorder=6)
+            ax.annotate(label, _free_spot(placed, v[:, 0].mean(), v[:, 1].mean(), scenario),  # type: ignore[attr-defined]
+                        ha="center", va="center", fontsize=7.5, zorder=6)
     handles: list[object] = []
     if any(not p.is_nofly for p in prisms):
         handles.append(Patch(facecolor=_OBSTACLE_FACE, edgecolor=_OBSTACLE_EDGE, alpha=0.7,
