@@ -236,12 +236,30 @@ weights = [1.0, 1.0, 1.0, 1.0, 1.0]
         "spacing too small": ("", too_many.replace("count = 24", "count = 4").replace("spacing = 10.0", "spacing = 3.0"),
                               "fleet.spacing"),
     }
+    ll = [[8.5455, 47.3977], [8.5457, 47.3977], [8.5457, 47.3979], [8.5455, 47.3977]]
+    gj = lambda props, geom: json.dumps({"type": "FeatureCollection", "features": [  # noqa: E731
+        {"type": "Feature", "properties": props, "geometry": geom}]})
+    geo = '[[geojson]]\nfile = "o.geojson"\n'
+    geojson_docs = {
+        "geojson without height": gj({"name": "shed"}, {"type": "Polygon", "coordinates": [ll]}),
+        "geojson height below base": gj({"name": "shed", "height": 3, "base": 5}, {"type": "Polygon", "coordinates": [ll]}),
+        "geojson line": gj({"name": "fence"}, {"type": "LineString", "coordinates": ll}),
+        "geojson not a collection": json.dumps({"type": "Polygon", "coordinates": [ll]}),
+    }
+    needles = {"geojson without height": "features[0] ('shed'): the property 'height' is missing",
+               "geojson height below base": "height 3 must be above base 5",
+               "geojson line": "geometry type 'LineString' is not supported",
+               "geojson not a collection": "not a GeoJSON FeatureCollection"}
+    for name in geojson_docs:
+        cases[name] = (geo, TEAM, needles[name])
     out = {}
     for name, (body, team, needle) in cases.items():
         d = tmp_path / name.replace(" ", "_")
         d.mkdir()
         for f in ("text.tif", "nocrs.tif", "small.tif", "holes.tif"):
             (d / f).write_bytes((tmp_path / f).read_bytes())
+        if name in geojson_docs:
+            (d / "o.geojson").write_text(geojson_docs[name])
         p = d / "site.toml"
         p.write_text(SITE + body + team)
         out[name] = (p, needle)
