@@ -138,7 +138,9 @@ def plot_paths_3d(result: PlanResult) -> Figure:
                 ha="center", va="bottom", weight="bold", zorder=6)
 
     handles += _legend_handles(result, "obstacle", alpha=0.6)
-    ax.legend(handles=handles, loc="upper left", fontsize=_LEGEND, framealpha=0.9)
+    big = len(names) > 12  # a large team: a compact legend in columns, out of the paths' way
+    ax.legend(handles=handles, loc="upper left", fontsize=_LEGEND - (2 if big else 0), framealpha=0.9,
+              ncol=4 if big else 1)
 
     ax.set_xlim(b.xmin, b.xmax)
     ax.set_ylim(b.ymin, b.ymax)
