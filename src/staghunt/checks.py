@@ -23,7 +23,10 @@ class Metrics:
 
     - ``path_length``: ``(N,)`` 3-D length of the full path.
     - ``min_clearance``: ``(N,)`` least horizontal gap between the UAV's body and any cylinder
-      along its segments: ``d_axis - R - r`` (negative = collision; ``inf`` without obstacles).
+      along its segments: ``d_axis - R - r`` (negative = collision; ``inf`` without obstacles);
+      for a prism or no-fly zone ``d - r``, ``d`` the horizontal distance to its footprint of the
+      part of a segment within ``(base - r, top + r)`` (docs/model.md 2.2); and the height left
+      under the ceiling.
     - ``min_separation_waypoints``: ``(N,)`` least distance to a team-mate at the synchronised
       points (start, free waypoints, goal); ``min_separation_segments``: ``(N,)`` the same for
       the closest approach along synchronised linear segments (``inf`` when alone).
