@@ -102,12 +102,18 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
     does not cover the site box, or has no data under it (unless ``nodata_fill``, an elevation
     in metres above mean sea level, is given)."""
     import rasterio  # heavy import, only for this kind of ground
+    import rasterio.windows
     from rasterio.errors import RasterioIOError
 
     from staghunt.world.georef import site_to_crs
 
     if not path.is_file():
         raise ScenarioError(f"no such DEM file {str(path)!r}", key)
+    cols = int(math.ceil((b.xmax - b.xmin) / cell_size - 1e-9)) + 1
+    rows = int(math.ceil((b.ymax - b.ymin) / cell_size - 1e-9)) + 1
+    xs = b.xmin + cell_size * np.arange(cols)
+    ys = b.ymin + cell_size * np.arange(rows)
+    gx, gy = np.meshgrid(xs, ys)  # (rows, cols)
     try:
         with rasterio.open(path) as src:
             if src.crs is None:
@@ -115,9 +121,27 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
                     f"the DEM {str(path)!r} has no CRS (coordinate reference system); "
                     "use ground.kind = 'dem' for a grid already in site coordinates", key)
             crs = src.crs.to_wkt()
-            values = src.read(1, masked=True).astype(np.float64)
             inverse = ~src.transform
             height, width = src.height, src.width
+            X, Y = site_to_crs(origin, crs, gx, gy)
+            X, Y = np.asarray(X), np.asarray(Y)
+            u = inverse.a * X + inverse.b * Y + inverse.c - 0.5  # fractional pixel-centre indices
+            v = inverse.d * X + inverse.e * Y + inverse.f - 0.5
+            outside = ~((u >= -1e-9) & (u <= width - 1 + 1e-9) & (v >= -1e-9) & (v <= height - 1 + 1e-9))
+            if outside.any():
+                i, j = np.argwhere(outside)[0]
+                raise ScenarioError(
+                    f"the DEM {str(path)!r} ({width} x {height} pixels) does not cover the site box "
+                    f"x [{_fmt(b.xmin)}, {_fmt(b.xmax)}], y [{_fmt(b.ymin)}, {_fmt(b.ymax)}] around the "
+                    f"origin ({_fmt(origin.latitude)}, {_fmt(origin.longitude)}): site point "
+                    f"x={_fmt(gx[i, j])}, y={_fmt(gy[i, j])} lies outside it", key)
+            # Read only the window of pixels the site needs (a DEM may be far larger than the site).
+            c0 = max(int(math.floor(u.min())) - 1, 0)
+            r0 = max(int(math.floor(v.min())) - 1, 0)
+            c1 = min(int(math.ceil(u.max())) + 2, width)
+            r1 = min(int(math.ceil(v.max())) + 2, height)
+            window = rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)
+            values = src.read(1, window=window, masked=True).astype(np.float64)
     except ScenarioError:
         raise
     except RasterioIOError as exc:
@@ -126,25 +150,9 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
         raise ScenarioError(f"cannot read {str(path)!r} as a raster: {exc}", key) from None
     grid_values = np.ma.getdata(values)
     missing = np.ma.getmaskarray(values) | ~np.isfinite(grid_values)
-    cols = int(math.ceil((b.xmax - b.xmin) / cell_size - 1e-9)) + 1
-    rows = int(math.ceil((b.ymax - b.ymin) / cell_size - 1e-9)) + 1
-    xs = b.xmin + cell_size * np.arange(cols)
-    ys = b.ymin + cell_size * np.arange(rows)
-    gx, gy = np.meshgrid(xs, ys)  # (rows, cols)
-    X, Y = site_to_crs(origin, crs, gx, gy)
-    X, Y = np.asarray(X), np.asarray(Y)
-    col = inverse.a * X + inverse.b * Y + inverse.c
-    row = inverse.d * X + inverse.e * Y + inverse.f
-    u = np.asarray(col) - 0.5  # fractional pixel-centre indices
-    v = np.asarray(row) - 0.5
-    outside = ~((u >= -1e-9) & (u <= width - 1 + 1e-9) & (v >= -1e-9) & (v <= height - 1 + 1e-9))
-    if outside.any():
-        i, j = np.argwhere(outside)[0]
-        raise ScenarioError(
-            f"the DEM {str(path)!r} ({width} x {height} pixels) does not cover the site box "
-            f"x [{_fmt(b.xmin)}, {_fmt(b.xmax)}], y [{_fmt(b.ymin)}, {_fmt(b.ymax)}] around the origin "
-            f"({_fmt(origin.latitude)}, {_fmt(origin.longitude)}): site point x={_fmt(gx[i, j])}, "
-            f"y={_fmt(gy[i, j])} lies outside it", key)
+    u = u - c0
+    v = v - r0
+    height, width = grid_values.shape
     u = np.clip(u, 0.0, width - 1.0)
     v = np.clip(v, 0.0, height - 1.0)
     j0 = np.minimum(np.floor(u).astype(np.intp), max(width - 2, 0))
