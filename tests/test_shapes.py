@@ -98,7 +98,7 @@ def test_above_the_top_is_clear_and_a_climb_is_judged_below_it():
 
 
 def test_matches_shapely_distance():
-    shapely = pytest.importorskip("shapely")
+    pytest.importorskip("shapely")
     from shapely.geometry import LineString, Polygon
 
     rng = np.random.default_rng(1)

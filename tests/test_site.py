@@ -206,7 +206,7 @@ def _bad_cases(tmp_path: Path) -> dict[str, tuple[Path, str]]:
     X0 = float(site_to_crs(ORIGIN, "EPSG:32632", 30.0, 0.0)[0])
     write_dem(tmp_path / "holes.tif", "EPSG:32632", 4.0, FLAT_DEM, hole=lambda X, Y: np.abs(X - X0) < 6.0)
     poly = lambda pts: "[[prisms]]\nname = \"p\"\npolygon = " + json.dumps(pts) + "\nheight = 10.0\n"  # noqa: E731
-    too_many = TEAM.replace("[[team]]", "") if False else """
+    too_many = """
 [fleet]
 count = 24
 template = "line"

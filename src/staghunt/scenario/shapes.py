@@ -137,7 +137,7 @@ def world_shapes(f: ScenarioFile, terrain: Terrain, origin: GeoOrigin | None, ba
     for i, p in enumerate(f.prisms):
         poly = check_polygon(p.polygon, f"prisms[{i}].polygon")
         prisms.append(make_prism(poly, p.base, p.height, terrain, p.name))
-    for i, bx in enumerate(f.boxes):
+    for bx in f.boxes:
         prisms.append(make_prism(box_polygon(bx.xmin, bx.xmax, bx.ymin, bx.ymax), bx.base, bx.height,
                                  terrain, bx.name, "box"))
     for i, z in enumerate(f.nofly):
