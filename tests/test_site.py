@@ -290,3 +290,26 @@ def test_site_wedge_plans_feasible_on_a_small_budget(tmp_path):
 
     s = scenario_from_dict(r["scenario"], name="x")
     assert s.n_uavs == 8 and len(s.world.prisms) == 6 and np.isfinite(s.world.ceiling)
+
+
+def test_fleet_per_uav_ends_and_explicit_graph(tmp_path):
+    fleet = """
+[fleet]
+count = 3
+template = "line"
+spacing = 10.0
+starts = [[-80.0, -10.0, 20.0], [-80.0, 0.0, 20.0], [-80.0, 10.0, 20.0]]
+goals = [[80.0, -10.0, 20.0], [80.0, 0.0, 20.0], [80.0, 10.0, 20.0]]
+radius = 1.0
+beta = 1.0
+weights = [1.0, 1.0, 1.0, 1.0, 1.0]
+[formation]
+incidence = [[1, 1, 0], [-1, 0, 1], [0, -1, -1]]
+edge_weights = [[1.0, 1.0, 0.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]]
+"""
+    s = load_scenario(scenario_file(tmp_path, "", team=fleet))
+    np.testing.assert_array_equal(s.starts()[:, 1], [-10.0, 0.0, 10.0])
+    assert s.formation.n_edges == 3  # the explicit graph, not the line's chain
+    bad = fleet.replace("starts = [[-80.0, -10.0, 20.0], ", "starts = [")
+    with pytest.raises(ScenarioError, match=r"fleet\.starts: must hold count = 3 points"):
+        load_scenario(scenario_file(tmp_path, "", team=bad))
