@@ -50,7 +50,7 @@ def test_scenarios(capsys):
     assert len(out) == len(builtin_names())
     for line, name in zip(out, builtin_names()):
         assert line.startswith(name)
-        assert "3 UAVs" in line and "obstacles" in line
+        assert " UAVs, " in line and "obstacles" in line
 
 
 def test_methods(capsys):

@@ -13,6 +13,7 @@ from staghunt.costs.formation import (
     nearest_waypoint_distance,
 )
 from staghunt.costs.model import CostModel, full_paths, to_absolute
+from staghunt.costs.prisms import prism_distance
 from staghunt.costs.single import segment_axis_distance
 
 
@@ -22,7 +23,10 @@ class Metrics:
 
     - ``path_length``: ``(N,)`` 3-D length of the full path.
     - ``min_clearance``: ``(N,)`` least horizontal gap between the UAV's body and any cylinder
-      along its segments: ``d_axis - R - r`` (negative = collision; ``inf`` without obstacles).
+      along its segments: ``d_axis - R - r`` (negative = collision; ``inf`` without obstacles);
+      for a prism or no-fly zone ``d - r``, ``d`` the horizontal distance to its footprint of the
+      part of a segment within ``(base - r, top + r)`` (docs/model.md 2.2); and the height left
+      under the ceiling.
     - ``min_separation_waypoints``: ``(N,)`` least distance to a team-mate at the synchronised
       points (start, free waypoints, goal); ``min_separation_segments``: ``(N,)`` the same for
       the closest approach along synchronised linear segments (``inf`` when alone).
@@ -74,6 +78,13 @@ def plan_metrics(model: CostModel, waypoints: np.ndarray) -> Metrics:
         clearance = gap.min(axis=(1, 2))
     else:
         clearance = np.full(model.n_uavs, np.inf)
+    if model.prisms.shape[0]:
+        # Prisms: horizontal gap between the body and the footprint, over the part of each
+        # segment within the prism's altitude range grown by r (docs/model.md).
+        pd = prism_distance(abs_path, model.prisms, model.prism_edges, model.radius, 0.0)[0]
+        clearance = np.minimum(clearance, (pd - model.radius[:, None, None]).min(axis=(1, 2)))
+    if np.isfinite(model.ceiling):
+        clearance = np.minimum(clearance, (model.ceiling - abs_path[0, :, :, 2]).min(axis=-1))
     E = formation_errors(abs_path[:, :, 1:-1], model.heads, model.tails, model.ref_diff, model.mu)[0]
     return Metrics(
         path_length=length,
@@ -103,6 +114,16 @@ def violations(model: CostModel, waypoints: np.ndarray, names: list[str]) -> lis
                 f"{names[n]} segment {s} passes {inner[n, 0, t] - dist[n, s, t]:.3g} m inside "
                 f"obstacle {t + 1} (x={cx:g}, y={cy:g}, R={R:g}) plus {what}"
             )
+    if model.prisms.shape[0]:
+        pd = prism_distance(abs_path, model.prisms, model.prism_edges, model.radius, model.min_clearance)[0]
+        inner = model.radius[:, None, None] + model.min_clearance
+        for n, s, q in zip(*np.nonzero(pd < inner)):
+            out.append(f"{names[n]} segment {s} passes {inner[n, 0, 0] - pd[n, s, q]:.3g} m inside "
+                       f"prism {q + 1} (footprint plus body radius and min clearance)")
+    if np.isfinite(model.ceiling):
+        for n, k in zip(*np.nonzero(abs_path[0, :, :, 2] > model.ceiling)):
+            out.append(f"{names[n]} point {k} is {abs_path[0, n, k, 2] - model.ceiling:.3g} m above "
+                       f"the ceiling z = {model.ceiling:g} m")
     for n, k in zip(*np.nonzero(waypoints[..., 2] < 0)):
         out.append(f"{names[n]} waypoint {k + 1} is {-waypoints[n, k, 2]:.3g} m below ground")
     limit = model.safe_distance + 2.0 * model.radius

@@ -27,7 +27,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
     width = max((len(n) for n in names), default=0)
     for name in names:
         s = load_scenario(name)
-        what = f"{s.n_uavs} UAVs, {len(s.world.cylinders)} obstacles"
+        what = f"{s.n_uavs} UAVs, {len(s.world.cylinders) + len(s.world.prisms)} obstacles"
         desc = " ".join(s.description.split())
         print(f"{name:<{width}}  {what}" + (f"  {desc}" if desc else ""))
     return EXIT_OK

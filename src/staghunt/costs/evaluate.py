@@ -14,6 +14,7 @@ from staghunt.costs.formation import (
     nearest_waypoint_distance,
 )
 from staghunt.costs.model import CostModel, full_paths, to_absolute
+from staghunt.costs.prisms import ceiling_cost, prism_distance, prism_threat
 from staghunt.costs.single import (
     altitude_cost,
     path_length,
@@ -87,6 +88,15 @@ def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
     dist = segment_axis_distance(path[..., :2], model.cylinders)
     threat, obstacle_depth = threat_cost(dist, model.cylinders, model.radius, model.danger_margin,
                                           model.min_clearance)
+    if model.prisms.shape[0]:
+        pd = prism_distance(abs_path, model.prisms, model.prism_edges, model.radius, model.min_clearance)
+        p_cost, p_depth = prism_threat(pd, model.radius, model.danger_margin, model.min_clearance)
+        threat = threat + p_cost
+        obstacle_depth = obstacle_depth + p_depth
+    if np.isfinite(model.ceiling):
+        c_cost, c_depth = ceiling_cost(abs_path, model.ceiling)
+        threat = threat + c_cost
+        obstacle_depth = obstacle_depth + c_depth
     altitude, ground_depth = altitude_cost(waypoints[..., 2], model.h_ref)
     turning, climb = smoothness_terms(
         abs_path, model.turning_threshold_deg, model.climb_threshold_deg

@@ -2,12 +2,12 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from staghunt.scenario.model import Scenario
-from staghunt.world import Terrain, cylinder_array
+from staghunt.world import Terrain, cylinder_array, prism_arrays
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -26,6 +26,8 @@ class CostModel:
     - ``lower``, ``upper``: ``(3,)`` site box in ``(x, y, h)``.
     - ``radius``, ``beta``: ``(N,)``; ``weights``: ``(N, 5)`` = ``w1..w5``.
     - ``cylinders``: ``(T, 3)`` = ``(cx, cy, R)``.
+    - ``prisms``: ``(Q, 8)`` and ``prism_edges``: ``(E, 4)`` (:func:`staghunt.world.prism_arrays`);
+      ``ceiling``: absolute altitude ceiling (site ``z``, ``inf`` = none).
     - ``heads``, ``tails``: ``(M,)`` UAV index of each edge's head/tail; ``mu``: ``(N, M)``;
       ``ref_diff``: ``(M, 3)`` = ``P_head,r - P_tail,r``.
     """
@@ -53,6 +55,9 @@ class CostModel:
     h_ref: float
     continuous_separation: bool
     min_clearance: float = 0.0
+    prisms: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((0, 8))))
+    prism_edges: np.ndarray = field(default_factory=lambda: _frozen(np.zeros((0, 4))))
+    ceiling: float = float("inf")
 
     @property
     def n_uavs(self) -> int:
@@ -65,6 +70,7 @@ class CostModel:
         terrain = world.terrain
         heads, tails = form.heads_tails()
         ref = np.asarray(form.reference, dtype=float)
+        prm, edges = prism_arrays(world.prisms)
         return cls(
             terrain=terrain,
             lower=_frozen(world.bounds.lower),
@@ -89,6 +95,9 @@ class CostModel:
             h_ref=scenario.h_ref,
             continuous_separation=bool(c.continuous_separation),
             min_clearance=float(c.min_clearance),
+            prisms=_frozen(prm),
+            prism_edges=_frozen(edges),
+            ceiling=float(world.ceiling),
         )
 
 

@@ -28,11 +28,13 @@ def _i64(a: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class ModelArrays:
     """The cost model as kernel arguments: ``uav (N, 11)``, ``weights (N, 5)``, ``cyl (T, 3)``,
-    ``heads``/``tails (M,)``, ``mu (N, M)``, ``ref_diff (M, 3)``, ``grid (R, Cg)``, ``par (13,)``."""
+    ``prm (Q, 8)``, ``pedge (E, 4)``, ``heads``/``tails (M,)``, ``mu (N, M)``, ``ref_diff (M, 3)``, ``grid (R, Cg)``, ``par (13,)``."""
 
     uav: np.ndarray
     weights: np.ndarray
     cyl: np.ndarray
+    prm: np.ndarray
+    pedge: np.ndarray
     heads: np.ndarray
     tails: np.ndarray
     mu: np.ndarray
@@ -42,7 +44,7 @@ class ModelArrays:
 
     def args(self) -> tuple[np.ndarray, ...]:
         """In the order the kernels take them."""
-        return (self.uav, self.weights, self.cyl, self.heads, self.tails, self.mu,
+        return (self.uav, self.weights, self.cyl, self.prm, self.pedge, self.heads, self.tails, self.mu,
                 self.ref_diff, self.grid, self.par)
 
 
@@ -83,11 +85,14 @@ def model_arrays(model: CostModel, c1: float = 0.0, c2: float = 0.0, team_sum: b
     par[kn.P_CELL] = cell
     par[kn.P_C1], par[kn.P_C2] = c1, c2
     par[kn.P_SUM] = 1.0 if team_sum else 0.0
+    par[kn.P_CEIL] = model.ceiling
     cyl = _f64(model.cylinders).reshape(-1, 3)
     return ModelArrays(
         uav=uav,
         weights=_f64(model.weights),
         cyl=cyl,
+        prm=_f64(model.prisms).reshape(-1, 8),
+        pedge=_f64(model.prism_edges).reshape(-1, 4),
         heads=_i64(model.heads),
         tails=_i64(model.tails),
         mu=_f64(model.mu).reshape(N, -1),

@@ -19,7 +19,9 @@ Layout: the particle index is innermost, so the loops over a block's lanes vecto
   ``cost``, ``pcost``: ``(C, P)``; ``viol``, ``pviol``: ``(P,)``; ``J``: ``(N, P)`` per-UAV ``J_n``.
 - Model arrays (:mod:`staghunt.engine.arrays`): ``uav (N, 11)`` = start ``(x, y, h)``, goal
   ``(x, y, h)``, start ``z``, goal ``z``, radius, ``beta``, separation limit ``d_s + 2 r``;
-  ``weights (N, 5)``; ``cyl (T, 3)``; ``heads``, ``tails (M,)``; ``mu (N, M)``; ``ref_diff (M, 3)``;
+  ``weights (N, 5)``; ``cyl (T, 3)``; ``prm (Q, 8)`` prisms = base, top, first edge, edge
+  count, bounding box; ``pedge (E, 4)`` footprint edges (:func:`staghunt.world.prism_arrays`);
+  ``heads``, ``tails (M,)``; ``mu (N, M)``; ``ref_diff (M, 3)``;
   ``grid (R, Cg)``; ``par`` (see ``P_*`` indices below).
 - Swarm arrays: ``sw (S, 22)`` = decoding start ``(x, y, h)``, decoding box low, high, search
   range low, high, velocity limit (each 3, over ``(rho, psi, phi)`` for the last three), then
@@ -69,13 +71,17 @@ P_C1 = 10
 P_C2 = 11
 P_SUM = 12  # 1: the objective is the team sum, else the players' J
 P_CLEAR = 13  # hard minimum clearance c: infeasible strictly inside R + r + c
-N_PAR = 14
+P_CEIL = 14  # altitude ceiling (absolute z; inf = none)
+N_PAR = 15
 SOLO_STRIDE = 7
 """A problem with fixed paths (a unilateral deviation: :func:`staghunt.solvers.problem.solo_problem`)
 appends, per UAV ``n``, its constant unweighted ``J_s`` terms (5) and obstacle and ground
 violations (2) to ``par`` at ``N_PAR + SOLO_STRIDE * n``. Then only the swarm-following UAVs'
 ``J_s`` terms are computed, only pairs with a player are checked, the violation is the players'
 own, and ``J`` of the other UAVs is NaN (as :meth:`SwarmProblem.evaluate`)."""
+
+PRUNE_MIN_UAVS = 4  # separation pairs are pruned by segment bounding boxes for N above this
+PRUNE_GUARD = 1e-6  # m added to a pair's limit before a box gap counts as clear
 
 MODE_INIT = 0  # draw uniform positions, evaluate, personal bests = positions
 MODE_STEP = 1  # PSO step, evaluate, personal bests by dominance
@@ -205,8 +211,111 @@ def _threats_exact(b, xn, yn, seg, cyl, radius, margin, clear, acc, dep) -> None
                 dep[b] += depth if depth >= 0.0 else 0.0
 
 
+@njit(cache=True, nogil=True, error_model="numpy")
+def _psd(px: float, py: float, cx: float, cy: float, dx: float, dy: float) -> float:
+    """:func:`staghunt.costs.prisms.point_segment_distance` for one point and one segment."""
+    ex = dx - cx
+    ey = dy - cy
+    l2 = ex * ex + ey * ey
+    t = 0.0
+    if l2 > 0.0:
+        t = min(max(((px - cx) * ex + (py - cy) * ey) / l2, 0.0), 1.0)
+    return math.hypot(px - (cx + t * ex), py - (cy + t * ey))
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def prism_segment_distance(xa: float, ya: float, za: float, xb: float, yb: float, zb: float,
+                           q: int, prm: np.ndarray, pedge: np.ndarray, grow: float) -> float:
+    """:func:`staghunt.costs.prisms.prism_distance` of one segment and prism ``q`` (same
+    arithmetic): horizontal distance from the segment's part strictly within ``(base - grow,
+    top + grow)`` to the footprint; ``inf`` if there is no such part."""
+    lo = prm[q, 0] - grow
+    hi = prm[q, 1] + grow
+    dz = zb - za
+    if dz == 0.0:
+        if not (lo < za and za < hi):
+            return np.inf
+        t0 = 0.0
+        t1 = 1.0
+    else:
+        tl = (lo - za) / dz
+        th = (hi - za) / dz
+        t0 = max(min(tl, th), 0.0)
+        t1 = min(max(tl, th), 1.0)
+        if not (t0 < t1):
+            return np.inf
+    ex = xb - xa
+    ey = yb - ya
+    ax = xa + t0 * ex
+    ay = ya + t0 * ey
+    bx = xa + t1 * ex
+    by = ya + t1 * ey
+    e0 = int(prm[q, 2])
+    d = np.inf
+    inside = False
+    for e in range(e0, e0 + int(prm[q, 3])):
+        cx = pedge[e, 0]
+        cy = pedge[e, 1]
+        dx = pedge[e, 2]
+        dy = pedge[e, 3]
+        o1 = (bx - ax) * (cy - ay) - (by - ay) * (cx - ax)
+        o2 = (bx - ax) * (dy - ay) - (by - ay) * (dx - ax)
+        o3 = (dx - cx) * (ay - cy) - (dy - cy) * (ax - cx)
+        o4 = (dx - cx) * (by - cy) - (dy - cy) * (bx - cx)
+        if o1 * o2 < 0.0 and o3 * o4 < 0.0:
+            return 0.0
+        if (cy > ay) != (dy > ay):
+            if ax < (dx - cx) * (ay - cy) / (dy - cy) + cx:
+                inside = not inside
+        d = min(d, min(min(_psd(ax, ay, cx, cy, dx, dy), _psd(bx, by, cx, cy, dx, dy)),
+                       min(_psd(cx, cy, ax, ay, bx, by), _psd(dx, dy, ax, ay, bx, by))))
+    return 0.0 if inside else d
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _prism_threats(nb, xn, yn, zn, prm, pedge, radius, margin, clear, ceiling, acc, dep) -> None:  # noqa: ANN001
+    """Add prism threats and the ceiling (:mod:`staghunt.costs.prisms`) of one UAV's lanes to
+    ``acc`` (cost) and ``dep`` (violation). A pair whose bounding boxes are farther apart than
+    both ``r + c`` and ``r + Delta`` (with a 1e-6 m guard) costs exactly 0 and is skipped."""
+    S = xn.shape[0] - 1
+    inner = radius + clear
+    outer = radius + margin
+    reach = max(inner, outer) + 1e-6
+    has_ceiling = ceiling < np.inf
+    for b in range(nb):
+        for j in range(S):
+            xa = xn[j, b]
+            ya = yn[j, b]
+            za = zn[j, b]
+            xb = xn[j + 1, b]
+            yb = yn[j + 1, b]
+            zb = zn[j + 1, b]
+            sx0 = min(xa, xb)
+            sx1 = max(xa, xb)
+            sy0 = min(ya, yb)
+            sy1 = max(ya, yb)
+            for q in range(prm.shape[0]):
+                gx = max(max(prm[q, 4] - sx1, sx0 - prm[q, 5]), 0.0)
+                gy = max(max(prm[q, 6] - sy1, sy0 - prm[q, 7]), 0.0)
+                if gx > reach or gy > reach:
+                    continue
+                d = prism_segment_distance(xa, ya, za, xb, yb, zb, q, prm, pedge, inner)
+                acc[b] += np.inf if d < inner else (0.0 if d > outer else outer - d)
+                depth = inner - d
+                dep[b] += depth if depth >= 0.0 else 0.0
+        if has_ceiling:
+            hit = False
+            for j in range(S + 1):
+                over = zn[j, b] - ceiling
+                if over > 0.0:
+                    hit = True
+                    dep[b] += over
+            if hit:
+                acc[b] += np.inf
+
+
 @subroutine
-def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, acc2, flag,  # noqa: ANN001
+def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, prm, pedge, par, seg, sub, ang, tmp, acc, acc2, flag,  # noqa: ANN001
                terms, vio) -> None:
     """The five unweighted ``J_s`` terms of UAV ``n`` (:mod:`staghunt.costs.single`) into
     ``terms[n]`` and its obstacle and ground violations into ``vio[n, 0:2]``.
@@ -277,6 +386,8 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, ac
     for b in range(nb):
         if flag[b] != 0.0:
             _threats_exact(b, xn, yn, seg, cyl, radius, margin, clear, acc, acc2)
+    if prm.shape[0] > 0 or par[P_CEIL] < np.inf:
+        _prism_threats(nb, xn, yn, zn, prm, pedge, radius, margin, clear, par[P_CEIL], acc, acc2)
     for b in range(nb):
         terms[n, 1, b] = acc[b]
         vio[n, 0, b] = acc2[b]
@@ -378,8 +489,9 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     Scratch: ``form (3, N, S, B)`` = ``E`` (eq. 5), nearest squared distance at the waypoints,
     along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments; ``rx``,
     ``ry``, ``rz`` ``(K+2, B)`` relative positions of a pair; ``tmp (>= S, B)``; ``acc``,
-    ``acc2``, ``flag`` ``(B,)``. All pairs are computed: skipping far ones by bounding boxes
-    measured slower for formations (every pair is near somewhere). With ``solo`` (a problem with
+    ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a pair's segments whose
+    bounding boxes over the block's lanes lie farther apart than its separation limit are
+    skipped (exact; see the comment in the body). With ``solo`` (a problem with
     fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``.
     """
     N = px.shape[0]
@@ -422,10 +534,53 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
         for j in range(S):
             _fill(near2[n, j], nb, np.inf)
             _fill(seg2[n, j], nb, np.inf)
+    # Pruning past small N: per UAV and segment, the bounding box of the segment over the
+    # block's lanes. A pair whose boxes on segment j are farther apart than its separation limit
+    # (plus a guard) is farther apart than the limit all along that segment in every lane, so
+    # its distances there cannot make a collision or a deficit: they are skipped (an entry of
+    # ``near2``/``seg2`` may then stay above its true value, but only where both exceed every
+    # limit, which decides nothing). Exact: the same collisions, deficits and J_f.
+    prune = N > PRUNE_MIN_UAVS
+    box = np.empty((6, N, S)) if prune else np.empty((6, 1, 1))
+    near = np.ones(S, dtype=np.bool_)
+    if prune:
+        for n in range(N):
+            for j in range(S):
+                x0 = np.inf
+                x1 = -np.inf
+                y0 = np.inf
+                y1 = -np.inf
+                z0 = np.inf
+                z1 = -np.inf
+                for i in range(j, j + 2):
+                    for b in range(nb):
+                        x0 = min(x0, px[n, i, b])
+                        x1 = max(x1, px[n, i, b])
+                        y0 = min(y0, py[n, i, b])
+                        y1 = max(y1, py[n, i, b])
+                        z0 = min(z0, pz[n, i, b])
+                        z1 = max(z1, pz[n, i, b])
+                box[0, n, j] = x0
+                box[1, n, j] = x1
+                box[2, n, j] = y0
+                box[3, n, j] = y1
+                box[4, n, j] = z0
+                box[5, n, j] = z1
     for a in range(N):
         for c in range(a + 1, N):
             if solo and not (_is_player(players, a) or _is_player(players, c)):
                 continue
+            if prune:
+                reach = max(uav[a, 10], uav[c, 10]) + PRUNE_GUARD
+                any_near = False
+                for j in range(S):
+                    g = max(max(box[0, c, j] - box[1, a, j], box[0, a, j] - box[1, c, j]),
+                            max(max(box[2, c, j] - box[3, a, j], box[2, a, j] - box[3, c, j]),
+                                max(box[4, c, j] - box[5, a, j], box[4, a, j] - box[5, c, j])))
+                    near[j] = not (g > reach)
+                    any_near = any_near or near[j]
+                if not any_near:
+                    continue
             for j in range(K + 2):  # relative positions p_a - p_c (NumPy's ``rel``)
                 for b in range(nb):
                     rx[j, b] = px[a, j, b] - px[c, j, b]
@@ -434,6 +589,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 for b in range(nb):
                     rz[j, b] = pz[a, j, b] - pz[c, j, b]
             for k in range(K):
+                if not near[k]:  # free waypoint k + 1 ends segment k
+                    continue
                 for b in range(nb):
                     tmp[k, b] = (rx[k + 1, b] * rx[k + 1, b] + ry[k + 1, b] * ry[k + 1, b]) + rz[k + 1, b] * rz[k + 1, b]
                 for b in range(nb):
@@ -443,6 +600,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             if not continuous:
                 continue
             for j in range(S):
+                if not near[j]:
+                    continue
                 for b in range(nb):
                     x0 = rx[j, b]
                     y0 = ry[j, b]
@@ -699,7 +858,7 @@ def _store(q0, nb, terms, vio, res, terms_out, vio_out, res_out) -> None:  # noq
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,  # noqa: ANN001
-             par, wp, uav, cyl, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2,
+             par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2,
              seg, sub, ang, tmp, acc, acc2, flag, terms, vio) -> None:
     """Entry 1: particles ``q0 .. q0+nb`` moved (``MODE_INIT``, ``MODE_STEP``) and decoded into
     team paths, or (``MODE_EVALUATE``) waypoints ``wp`` loaded; absolute altitudes into
@@ -720,7 +879,7 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
             for i in range(2):
                 _fill(vio[n, i], nb, par[base + 5 + i])
         else:
-            _uav_terms(nb, n, px, py, pz, ph, uav, cyl, par, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
+            _uav_terms(nb, n, px, py, pz, ph, uav, cyl, prm, pedge, par, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

@@ -157,7 +157,7 @@ class _Pass:
             if name == "uav_pass":
                 kn.uav_pass(self.mode, q0, nb, self.it, self.key, self.inertia, self.X, self.V, self.PB,
                             self.gbest, self.initial, sa.sw, sa.member, sa.offsets, sa.fixed, ma.par, self.wp,
-                            ma.uav, ma.cyl, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
+                            ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
                             w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag,
                             w.terms, w.vio)
             else:
@@ -185,7 +185,11 @@ def _tiny(entries: Iterable[str]) -> None:
     par[kn.P_CELL], par[kn.P_C1], par[kn.P_C2] = 1.0, 1.5, 1.5
     uav = np.array([[10.0, 10.0, 20.0, 80.0, 80.0, 20.0, 20.0, 20.0, 1.0, 1.0, 4.0],
                     [20.0, 10.0, 20.0, 90.0, 80.0, 20.0, 20.0, 20.0, 1.0, 1.0, 4.0]])
+    par[kn.P_CEIL] = np.inf
     ma = ModelArrays(uav=uav, weights=np.ones((N, 5)), cyl=np.array([[50.0, 50.0, 4.0]]),
+                     prm=np.array([[-np.inf, 30.0, 0.0, 4.0, 60.0, 70.0, 20.0, 30.0]]),
+                     pedge=np.array([[60.0, 20.0, 70.0, 20.0], [70.0, 20.0, 70.0, 30.0],
+                                     [70.0, 30.0, 60.0, 30.0], [60.0, 30.0, 60.0, 20.0]]),
                      heads=np.zeros(1, dtype=np.int64), tails=np.ones(1, dtype=np.int64),
                      mu=np.ones((N, 1)), ref_diff=np.array([[-10.0, 0.0, 0.0]]), grid=np.zeros((1, 1)),
                      par=par)

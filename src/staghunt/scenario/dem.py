@@ -4,13 +4,14 @@ the site box. Failures raise :class:`ScenarioError` naming the ``ground`` key at
 from __future__ import annotations
 
 import hashlib
+import math
 from pathlib import Path
 
 import numpy as np
 
 from staghunt.scenario.errors import ScenarioError
 from staghunt.scenario.errors import fmt as _fmt
-from staghunt.world import Bounds, Terrain
+from staghunt.world import Bounds, GeoOrigin, Terrain
 
 DEM_SUFFIXES = (".npy", ".tif", ".tiff")
 
@@ -92,3 +93,95 @@ def check_dem_covers(terrain: Terrain, b: Bounds) -> None:
             f"y [{_fmt(b.ymin)}, {_fmt(b.ymax)}]; check ground.origin and ground.cell_size",
             "ground",
         )
+
+
+def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: float, sampling: str,
+                         nodata_fill: float | None, key: str) -> Terrain:
+    """A geo-referenced GeoTIFF DEM (any CRS rasterio and pyproj know; elevations in metres above
+    mean sea level) resampled into the site frame: a ``(rows, cols)`` float64 grid of site
+    heights ``z = elevation - origin.altitude`` whose first node is ``(xmin, ymin)`` and whose
+    spacing is ``cell_size``, covering the site box. Each node is transformed into the DEM's
+    CRS (pyproj) and interpolated bilinearly between the four surrounding pixel centres. The
+    grid is then sampled at flight time as any DEM (``sampling``).
+
+    Raises :class:`ScenarioError` (key ``key``) for a file that is not a raster, has no CRS,
+    does not cover the site box, or has no data under it (unless ``nodata_fill``, an elevation
+    in metres above mean sea level, is given)."""
+    import rasterio  # heavy import, only for this kind of ground
+    import rasterio.windows
+    from rasterio.errors import RasterioIOError
+
+    from staghunt.world.georef import site_to_crs
+
+    if not path.is_file():
+        raise ScenarioError(f"no such DEM file {str(path)!r}", key)
+    cols = int(math.ceil((b.xmax - b.xmin) / cell_size - 1e-9)) + 1
+    rows = int(math.ceil((b.ymax - b.ymin) / cell_size - 1e-9)) + 1
+    xs = b.xmin + cell_size * np.arange(cols)
+    ys = b.ymin + cell_size * np.arange(rows)
+    gx, gy = np.meshgrid(xs, ys)  # (rows, cols)
+    try:
+        with rasterio.open(path) as src:
+            if src.crs is None:
+                raise ScenarioError(
+                    f"the DEM {str(path)!r} has no CRS (coordinate reference system); "
+                    "use ground.kind = 'dem' for a grid already in site coordinates", key)
+            crs = src.crs.to_wkt()
+            inverse = ~src.transform
+            height, width = src.height, src.width
+            X, Y = site_to_crs(origin, crs, gx, gy)
+            X, Y = np.asarray(X), np.asarray(Y)
+            u = inverse.a * X + inverse.b * Y + inverse.c - 0.5  # fractional pixel-centre indices
+            v = inverse.d * X + inverse.e * Y + inverse.f - 0.5
+            outside = ~((u >= -1e-9) & (u <= width - 1 + 1e-9) & (v >= -1e-9) & (v <= height - 1 + 1e-9))
+            if outside.any():
+                i, j = np.argwhere(outside)[0]
+                raise ScenarioError(
+                    f"the DEM {str(path)!r} ({width} x {height} pixels) does not cover the site box "
+                    f"x [{_fmt(b.xmin)}, {_fmt(b.xmax)}], y [{_fmt(b.ymin)}, {_fmt(b.ymax)}] around the "
+                    f"origin ({_fmt(origin.latitude)}, {_fmt(origin.longitude)}): site point "
+                    f"x={_fmt(gx[i, j])}, y={_fmt(gy[i, j])} lies outside it", key)
+            # Read only the window of pixels the site needs (a DEM may be far larger than the site).
+            c0 = max(int(math.floor(u.min())) - 1, 0)
+            r0 = max(int(math.floor(v.min())) - 1, 0)
+            c1 = min(int(math.ceil(u.max())) + 2, width)
+            r1 = min(int(math.ceil(v.max())) + 2, height)
+            window = rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)
+            values = src.read(1, window=window, masked=True).astype(np.float64)
+    except ScenarioError:
+        raise
+    except RasterioIOError as exc:
+        raise ScenarioError(f"cannot read {str(path)!r} as a raster: {exc}", key) from None
+    except Exception as exc:  # noqa: BLE001 - any other reader failure is bad input too
+        raise ScenarioError(f"cannot read {str(path)!r} as a raster: {exc}", key) from None
+    grid_values = np.ma.getdata(values)
+    missing = np.ma.getmaskarray(values) | ~np.isfinite(grid_values)
+    u = u - c0
+    v = v - r0
+    height, width = grid_values.shape
+    u = np.clip(u, 0.0, width - 1.0)
+    v = np.clip(v, 0.0, height - 1.0)
+    j0 = np.minimum(np.floor(u).astype(np.intp), max(width - 2, 0))
+    i0 = np.minimum(np.floor(v).astype(np.intp), max(height - 2, 0))
+    j1 = np.minimum(j0 + 1, width - 1)
+    i1 = np.minimum(i0 + 1, height - 1)
+    fu = u - j0
+    fv = v - i0
+    hole = missing[i0, j0] | missing[i0, j1] | missing[i1, j0] | missing[i1, j1]
+    if hole.any():
+        if nodata_fill is None:
+            i, j = np.argwhere(hole)[0]
+            raise ScenarioError(
+                f"the DEM {str(path)!r} has no data under the site at x={_fmt(gx[i, j])}, "
+                f"y={_fmt(gy[i, j])}, where paths may fly ({int(hole.sum())} grid nodes); "
+                "give ground.nodata_fill or a DEM without holes there", key)
+        grid_values = np.where(missing, float(nodata_fill), grid_values)
+    g = grid_values
+    top = g[i0, j0] * (1 - fu) + g[i0, j1] * fu
+    bottom = g[i1, j0] * (1 - fu) + g[i1, j1] * fu
+    z = top * (1 - fv) + bottom * fv - origin.altitude
+    z = np.ascontiguousarray(z, dtype=np.float64)
+    z.setflags(write=False)
+    return Terrain(elevation=z, origin=(float(b.xmin), float(b.ymin)), cell_size=float(cell_size),
+                   sampling=sampling,  # type: ignore[arg-type]
+                   source=str(path), georef={"kind": "geotiff", "nodata_fill": nodata_fill})

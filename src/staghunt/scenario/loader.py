@@ -26,14 +26,14 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from staghunt.scenario.dem import check_dem_covers, grid_digest, read_dem_array
+from staghunt.scenario.dem import check_dem_covers, grid_digest, read_dem_array, read_geotiff_terrain
 from staghunt.scenario.errors import ScenarioError, fmt
 from staghunt.scenario.model import CostParams, Scenario, SolverSettings
 from staghunt.task import UAV, Formation, VehicleLimits, Weights, is_connected
 from staghunt.world import Bounds, Cylinder, GeoOrigin, Terrain, World
 
 if TYPE_CHECKING:
-    from staghunt.scenario.schema import FormationTable, Ground, Uav
+    from staghunt.scenario.schema import Fleet, FormationTable, Ground, Uav
 
 __all__ = [
     "ScenarioError",
@@ -121,7 +121,7 @@ def _matrix(rows: list[list[float]], path: str) -> np.ndarray:
     return np.array(rows, dtype=float).reshape(len(rows), ncols)
 
 
-def _terrain(ground: Ground, base_dir: Path | None, bounds: Bounds) -> Terrain:
+def _terrain(ground: Ground, base_dir: Path | None, bounds: Bounds, origin: GeoOrigin | None = None) -> Terrain:
     if ground.kind == "flat":
         return Terrain()
     assert ground.file is not None
@@ -129,6 +129,12 @@ def _terrain(ground: Ground, base_dir: Path | None, bounds: Bounds) -> Terrain:
     if not file.is_absolute() and base_dir is not None:
         file = base_dir / file
     file = file.resolve()
+    if ground.kind == "geotiff":
+        if origin is None:
+            raise ScenarioError("kind = 'geotiff' needs the [origin] table (the site frame's geodetic origin)",
+                                "ground.kind")
+        return read_geotiff_terrain(file, origin, bounds, ground.cell_size, ground.sampling,
+                                    ground.nodata_fill, "ground.file")
     grid = read_dem_array(file, "ground.file")
     # Optional integrity checks (scenario_to_dict writes them).
     if ground.shape is not None and tuple(ground.shape) != grid.shape:
@@ -177,6 +183,46 @@ def _team(items: Sequence[Uav]) -> tuple[UAV, ...]:
     return tuple(team)
 
 
+def _fleet(fleet: Fleet, costs: CostParams) -> tuple[tuple[UAV, ...], Formation]:
+    """The team and formation graph of a ``[fleet]`` template (:mod:`staghunt.task.templates`)."""
+    from staghunt.task.templates import graph_matrices, place, template_edges, template_offsets
+
+    n = fleet.count
+    limit = costs.safe_distance + 2.0 * fleet.radius
+    offsets = template_offsets(fleet.template, n, fleet.spacing, fleet.columns)
+    if n > 1:
+        d = np.hypot(*(offsets[:, None] - offsets[None]).transpose(2, 0, 1))
+        d[np.arange(n), np.arange(n)] = np.inf
+        if d.min() <= limit:
+            raise ScenarioError(
+                f"{n} UAVs in a {fleet.template} at spacing {fmt(fleet.spacing)} m come {fmt(float(d.min()))} m "
+                f"apart; it must be more than costs.safe_distance + 2 * radius = {fmt(limit)} m",
+                "fleet.spacing")
+    if fleet.start is not None and fleet.goal is not None:
+        start, goal = np.asarray(fleet.start, float), np.asarray(fleet.goal, float)
+        heading = (math.radians(fleet.heading_deg) if fleet.heading_deg is not None
+                   else math.atan2(goal[1] - start[1], goal[0] - start[0]))
+        starts, goals = place(offsets, start, heading), place(offsets, goal, heading)
+    else:
+        starts = np.asarray(fleet.start if fleet.starts is None else fleet.starts, float).reshape(-1, 3)
+        goals = np.asarray(fleet.goal if fleet.goals is None else fleet.goals, float).reshape(-1, 3)
+        if fleet.starts is None:
+            starts = np.repeat(starts, n, axis=0)
+        if fleet.goals is None:
+            goals = np.repeat(goals, n, axis=0)
+        heading = math.radians(fleet.heading_deg) if fleet.heading_deg is not None else math.atan2(
+            goals[:, 1].mean() - starts[:, 1].mean(), goals[:, 0].mean() - starts[:, 0].mean())
+    w = fleet.weights
+    team = tuple(
+        UAV(name=f"UAV{i + 1}", start=(float(starts[i, 0]), float(starts[i, 1]), float(starts[i, 2])),
+            goal=(float(goals[i, 0]), float(goals[i, 1]), float(goals[i, 2])), radius=fleet.radius,
+            weights=Weights(fleet.beta, w[0], w[1], w[2], w[3], w[4]))
+        for i in range(n))
+    inc, mu = graph_matrices(n, template_edges(fleet.template, n, fleet.columns))
+    ref = place(offsets, np.zeros(3), heading)  # the level template at the heading
+    return team, Formation(incidence=_frozen(inc), edge_weights=_frozen(mu), reference=_frozen(ref))
+
+
 def _check_team_in_world(team: Sequence[UAV], world: World, costs: CostParams) -> None:
     """Starts and goals inside the site box, clear of obstacles, and apart from each other."""
     b = world.bounds
@@ -203,6 +249,7 @@ def _check_team_in_world(team: Sequence[UAV], world: World, costs: CostParams) -
         pts = np.array([getattr(u, end) for u in team], dtype=float)
         z = world.terrain.absolute(pts[:, 0], pts[:, 1], pts[:, 2])
         absolute = np.column_stack([pts[:, 0], pts[:, 1], z])
+        _check_points_clear(team, world, absolute, end)
         for i in range(len(team)):
             for j in range(i + 1, len(team)):
                 dist = float(np.linalg.norm(absolute[i] - absolute[j]))
@@ -214,6 +261,31 @@ def _check_team_in_world(team: Sequence[UAV], world: World, costs: CostParams) -
                         f"= {fmt(limit)} m",
                         f"team[{j}].{end}",
                     )
+
+
+def _check_points_clear(team: Sequence[UAV], world: World, absolute: np.ndarray, end: str) -> None:
+    """Starts or goals ``absolute`` ``(N, 3)`` outside every prism and no-fly zone (grown by the
+    body radius, as the cost model judges them) and below the ceiling."""
+    from staghunt.costs.prisms import prism_distance
+    from staghunt.world import prism_arrays
+
+    if world.prisms:
+        prm, edges = prism_arrays(world.prisms)
+        radius = np.array([u.radius for u in team], dtype=float)
+        path = np.repeat(absolute[None, :, None, :], 2, axis=2)  # (1, N, 2, 3): a point
+        d = prism_distance(path, prm, edges, radius, 0.0)[0, :, 0]  # (N, Q)
+        for i, q in zip(*np.nonzero(d < radius[:, None])):
+            p, u = world.prisms[q], team[i]
+            what = "no-fly zone" if p.is_nofly else "obstacle"
+            label = repr(p.name) if p.name else f"prism {q}"
+            raise ScenarioError(
+                f"{getattr(u, end)} of {u.name!r} lies inside {what} {label} plus body radius {fmt(u.radius)}",
+                f"team[{i}].{end}")
+    if math.isfinite(world.ceiling):
+        for i in np.nonzero(absolute[:, 2] > world.ceiling)[0]:
+            raise ScenarioError(
+                f"{team[i].name!r} {end} is at z = {fmt(float(absolute[i, 2]))} m, above the ceiling "
+                f"airspace.ceiling = {fmt(world.ceiling)} m", f"team[{i}].{end}")
 
 
 def _formation(table: FormationTable | None, team: Sequence[UAV], terrain: Terrain) -> Formation:
@@ -299,22 +371,39 @@ def scenario_from_dict(
     scenario_name = f.name if f.name is not None else name
     if not scenario_name.strip():
         raise ScenarioError("must not be empty", "name")
+    from staghunt.scenario.shapes import world_shapes
+
     bounds = Bounds(**f.site.model_dump())
-    terrain = _terrain(f.ground, base_dir, bounds)
+    origin = None if f.origin is None else GeoOrigin(**f.origin.model_dump())
+    terrain = _terrain(f.ground, base_dir, bounds, origin)
     cylinders = tuple(Cylinder(x=o.x, y=o.y, radius=o.radius, name=o.name) for o in f.obstacles)
-    world = World(bounds=bounds, terrain=terrain, cylinders=cylinders)
+    prisms, more_cylinders, ceiling = world_shapes(f, terrain, origin, base_dir)
+    world = World(bounds=bounds, terrain=terrain, cylinders=cylinders + more_cylinders, prisms=prisms,
+                  ceiling=ceiling)
     costs = CostParams(**f.costs.model_dump())
-    team = _team(f.team)
-    _check_team_in_world(team, world, costs)
+    if f.fleet is not None:
+        team, fleet_formation = _fleet(f.fleet, costs)
+        try:
+            _check_team_in_world(team, world, costs)
+        except ScenarioError as exc:
+            raise ScenarioError(
+                f"{f.fleet.count} UAVs in a {f.fleet.template} at spacing {fmt(f.fleet.spacing)} m do not fit "
+                f"the site: {exc.key}: {exc.detail}", "fleet") from None
+        formation = fleet_formation if f.formation is None else _formation(f.formation, team, terrain)
+    else:
+        assert f.team is not None
+        team = _team(f.team)
+        _check_team_in_world(team, world, costs)
+        formation = _formation(f.formation, team, terrain)
     return Scenario(
         name=scenario_name,
         description=f.description,
         world=world,
         team=team,
-        formation=_formation(f.formation, team, terrain),
+        formation=formation,
         costs=costs,
         solver=SolverSettings(**f.solver.model_dump()),
-        origin=None if f.origin is None else GeoOrigin(**f.origin.model_dump()),
+        origin=origin,
         vehicle=VehicleLimits(**f.vehicle.model_dump()),
     )
 
@@ -337,6 +426,14 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     ground: dict[str, Any]
     if terrain.elevation is None:
         ground = {"kind": "flat"}
+    elif terrain.georef is not None:
+        ground = {
+            "kind": "geotiff",
+            "file": terrain.source,
+            "cell_size": float(terrain.cell_size),
+            "sampling": terrain.sampling,
+            "nodata_fill": terrain.georef.get("nodata_fill"),
+        }
     else:
         ground = {
             "kind": "dem",
@@ -361,6 +458,12 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             {"x": float(o.x), "y": float(o.y), "radius": float(o.radius), "name": o.name}
             for o in w.cylinders
         ],
+        "prisms": [
+            {"name": p.name, "polygon": [list(v) for v in p.polygon], "base": p.agl[0], "height": p.agl[1]}
+            for p in w.prisms if not p.is_nofly and p.agl is not None
+        ],
+        "nofly": [{"name": p.name, "polygon": [list(v) for v in p.polygon]} for p in w.prisms if p.is_nofly],
+        "airspace": {"ceiling": None if not math.isfinite(w.ceiling) else float(w.ceiling)},
         "team": [
             {
                 "name": u.name,

@@ -90,10 +90,13 @@ class Site(_Table):
 
 
 class Ground(_Table):
-    """Flat ground (height 0) or a DEM grid read from a ``.npy`` or GeoTIFF file."""
+    """Flat ground (height 0), a DEM grid read from a ``.npy`` or GeoTIFF file in site
+    coordinates (``dem``), or a geo-referenced GeoTIFF with its CRS resampled into the site
+    frame around ``[origin]`` (``geotiff``)."""
 
-    kind: Literal["flat", "dem"] = "flat"
+    kind: Literal["flat", "dem", "geotiff"] = "flat"
     file: Optional[str] = Field(None, description="DEM file (.npy, .tif, .tiff), relative to the scenario file")
+    nodata_fill: Optional[Number] = Field(None, description="geotiff: elevation (m AMSL) used where the DEM has no data; default: no data under the site is an error")
     origin: Annotated[list[Number], Field(min_length=2, max_length=2, description="[x0, y0]: site coordinates of the grid's first cell centre")] = [0.0, 0.0]
     cell_size: Annotated[float, Field(gt=0, description="grid spacing (m)")] = 1.0
     sampling: Literal["nearest", "bilinear"] = "nearest"
@@ -106,9 +109,15 @@ class Ground(_Table):
         if self.kind == "flat":
             for key in type(self).model_fields:
                 if key != "kind" and key in self.model_fields_set:
-                    raise _fail(key, "only used with kind = 'dem'; flat ground takes no other key than 'kind'")
+                    raise _fail(key, "only used with kind = 'dem' or 'geotiff'; flat ground takes no other key than 'kind'")
         elif self.file is None:
             raise _fail("file", "required key is missing")
+        if self.kind == "geotiff":
+            for key in ("origin", "shape", "dtype", "sha256"):
+                if key in self.model_fields_set:
+                    raise _fail(key, "not used with kind = 'geotiff' (the DEM's CRS and [origin] place the grid)")
+        elif self.nodata_fill is not None:
+            raise _fail("nodata_fill", "only used with kind = 'geotiff'")
         return self
 
 
@@ -119,6 +128,98 @@ class Obstacle(_Table):
     y: Number
     radius: Annotated[float, Field(gt=0)]
     name: str = ""
+
+
+Polygon = Annotated[
+    list[Annotated[list[Number], Field(min_length=2, max_length=2)]],
+    Field(min_length=3, description="[[x, y], ...] footprint vertices in the site frame (m), not closed"),
+]
+
+
+class PrismTable(_Table):
+    """A vertical prism (building, crane tower, site cabin): a footprint polygon from ``base``
+    to ``height``, both in metres above the ground (docs/model.md, "Prisms")."""
+
+    name: str = ""
+    polygon: Polygon
+    base: Annotated[float, Field(ge=0, description="m above ground; 0 = from the ground")] = 0.0
+    height: Annotated[float, Field(gt=0, description="top, m above ground")]
+
+    @model_validator(mode="after")
+    def _order(self) -> "PrismTable":
+        if self.height <= self.base:
+            raise _fail("height", f"must be above base = {_fmt(self.base)}, got {_fmt(self.height)}")
+        return self
+
+
+class BoxTable(_Table):
+    """An axis-aligned box: x in [xmin, xmax], y in [ymin, ymax], from ``base`` to ``height`` m above ground."""
+
+    name: str = ""
+    xmin: Number
+    xmax: Number
+    ymin: Number
+    ymax: Number
+    base: Annotated[float, Field(ge=0, description="m above ground; 0 = from the ground")] = 0.0
+    height: Annotated[float, Field(gt=0, description="top, m above ground")]
+
+    @model_validator(mode="after")
+    def _order(self) -> "BoxTable":
+        for lo, hi in (("xmin", "xmax"), ("ymin", "ymax")):
+            if getattr(self, lo) >= getattr(self, hi):
+                raise _fail(hi, f"must be greater than {lo} = {_fmt(getattr(self, lo))}, got {_fmt(getattr(self, hi))}")
+        if self.height <= self.base:
+            raise _fail("height", f"must be above base = {_fmt(self.base)}, got {_fmt(self.height)}")
+        return self
+
+
+class NoFlyTable(_Table):
+    """A no-fly zone: a polygon forbidden at every height."""
+
+    name: str = ""
+    polygon: Polygon
+
+
+class GeoJsonTable(_Table):
+    """Obstacles from a GeoJSON file (lon/lat, WGS84), converted around ``[origin]``: Polygon and
+    MultiPolygon features with a ``height`` (and optional ``base``) property become prisms
+    (or no-fly zones with ``nofly = true``), Points with a ``radius`` become cylinders."""
+
+    file: str = Field(description="GeoJSON file, relative to the scenario file")
+    nofly: bool = Field(False, description="every polygon of the file is a no-fly zone")
+
+
+class Airspace(_Table):
+    """Limits of the airspace."""
+
+    ceiling: Optional[Number] = Field(None, description="altitude ceiling: absolute z in the site frame (m above the origin's altitude)")
+
+
+class Fleet(_Table):
+    """A team generated from a formation template (replaces [[team]])."""
+
+    count: Annotated[int, Field(ge=1, le=64)]
+    template: Literal["line", "wedge", "grid", "circle"]
+    spacing: Annotated[float, Field(gt=0, description="m between neighbours of the template")]
+    columns: Optional[Annotated[int, Field(ge=1)]] = Field(None, description="grid: UAVs per row; default ceil(sqrt(count))")
+    heading_deg: Optional[Number] = Field(None, description="direction the formation faces, degrees counter-clockwise from east; default: team start to team goal")
+    start: Optional[XYH] = Field(None, description="team start: the formation's centre")
+    goal: Optional[XYH] = Field(None, description="team goal: the formation's centre")
+    starts: Optional[list[XYH]] = Field(None, description="per-UAV starts instead of start")
+    goals: Optional[list[XYH]] = Field(None, description="per-UAV goals instead of goal")
+    radius: Annotated[float, Field(ge=0, description="body radius r (m)")]
+    beta: Annotated[float, Field(ge=0)]
+    weights: Annotated[list[NonNegative], Field(min_length=5, max_length=5)]
+
+    @model_validator(mode="after")
+    def _ends(self) -> "Fleet":
+        for one, many in (("start", "starts"), ("goal", "goals")):
+            a, b = getattr(self, one), getattr(self, many)
+            if (a is None) == (b is None):
+                raise _fail(one, f"give exactly one of {one} (the team's) and {many} (one per UAV)")
+            if b is not None and len(b) != self.count:
+                raise _fail(many, f"must hold count = {self.count} points, got {len(b)}")
+        return self
 
 
 class Uav(_Table):
@@ -205,11 +306,26 @@ class ScenarioFile(_Table):
     origin: Optional[Origin] = None
     ground: Ground = Field(default_factory=Ground)
     obstacles: list[Obstacle] = []
-    team: Annotated[list[Uav], Field(min_length=1)]
+    prisms: list[PrismTable] = []
+    boxes: list[BoxTable] = []
+    nofly: list[NoFlyTable] = []
+    geojson: list[GeoJsonTable] = []
+    airspace: Airspace = Field(default_factory=Airspace)
+    team: Optional[Annotated[list[Uav], Field(min_length=1)]] = None
+    fleet: Optional[Fleet] = None
     formation: Optional[FormationTable] = Field(None, description="required for two UAVs or more")
     costs: Costs = Field(default_factory=Costs)
     solver: Solver = Field(default_factory=Solver)
     vehicle: Vehicle = Field(default_factory=Vehicle)
+
+
+    @model_validator(mode="after")
+    def _team_or_fleet(self) -> "ScenarioFile":
+        if self.team is None and self.fleet is None:
+            raise _fail("team", "required key is missing (or give a [fleet])")
+        if self.team is not None and self.fleet is not None:
+            raise _fail("fleet", "give either [[team]] entries or a [fleet], not both")
+        return self
 
 
 def json_schema() -> dict[str, Any]:
@@ -225,7 +341,9 @@ def json_schema() -> dict[str, Any]:
 _VECTORS = {"start": "[x, y, h]", "goal": "[x, y, h]", "weights": "[w1, w2, w3, w4, w5]", "origin": "[x0, y0]"}
 _UNITS = {"turning_threshold_deg": " degrees", "climb_threshold_deg": " degrees", "latitude": " degrees",
           "longitude": " degrees", "altitude": " m above mean sea level"}
-_ARRAY_HINTS = {"team": " (write [[team]] for each UAV)", "obstacles": " (write [[obstacles]] for each obstacle)"}
+_ARRAY_HINTS = {"team": " (write [[team]] for each UAV)", "obstacles": " (write [[obstacles]] for each obstacle)",
+                "prisms": " (write [[prisms]] for each prism)", "boxes": " (write [[boxes]] for each box)",
+                "nofly": " (write [[nofly]] for each zone)", "geojson": " (write [[geojson]] for each file)"}
 
 
 # pydantic error type -> message ({got}: "got a string '100'"; {value}: the value itself).

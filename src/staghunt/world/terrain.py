@@ -41,6 +41,9 @@ class Terrain:
     cell_size: float = 1.0
     sampling: Sampling = "nearest"
     source: str | None = field(default=None)
+    georef: dict | None = field(default=None)
+    """How a geo-referenced DEM was read (``{"kind": "geotiff", "nodata_fill": ...}``), so a
+    scenario written back reads it again the same way; ``None`` for other grids."""
 
     @property
     def is_flat(self) -> bool:
