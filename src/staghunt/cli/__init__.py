@@ -29,7 +29,7 @@ import sys
 import warnings
 from typing import Sequence
 
-from staghunt.cli import analysis, plan, scenarios
+from staghunt.cli import analysis, missions, plan, scenarios
 from staghunt.cli.common import EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line, say
 from staghunt.inputs import clip
 from staghunt.cli.plan import ProgressReporter, summary_table
@@ -51,6 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     scenarios.add_commands(sub)
     plan.add_commands(sub)
     analysis.add_commands(sub)
+    missions.add_commands(sub)
     return parser
 
 
@@ -91,7 +92,7 @@ def main(argv: Sequence[str] | None = None) -> int:
 def _main(argv: Sequence[str] | None) -> int:
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args = parser.parse_args(missions.join_negative_values(sys.argv[1:] if argv is None else argv))
     except UsageError as exc:
         return error(one_line(exc))
     except SystemExit as exc:  # --help, --version

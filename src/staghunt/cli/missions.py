@@ -1,0 +1,95 @@
+"""``staghunt export``: the mission files of a plan (parse, call :mod:`staghunt.missions`, report).
+
+Exit codes: ``0`` written; ``3`` refused: the plan is infeasible or its timed trajectories break a
+limit (``--force`` writes them anyway, marked unsafe); ``2`` bad input; ``130`` interrupted.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any, Sequence
+
+from staghunt.cli.common import EXIT_NEGATIVE, EXIT_OK, PROG, command, error, one_line
+
+OPTIONS_WITH_NEGATIVE_VALUES = ("--origin",)
+
+
+def join_negative_values(argv: Sequence[str]) -> list[str]:
+    """``--origin -33.88,151.2,30`` -> ``--origin=-33.88,151.2,30``: argparse would take a value
+    starting with ``-`` that is not a plain number for an option; southern and western users
+    type exactly that."""
+    out: list[str] = []
+    i = 0
+    args = list(argv)
+    while i < len(args):
+        if args[i] in OPTIONS_WITH_NEGATIVE_VALUES and i + 1 < len(args):
+            out.append(f"{args[i]}={args[i + 1]}")
+            i += 2
+        else:
+            out.append(args[i])
+            i += 1
+    return out
+
+
+def _origin(text: str) -> Any:
+    from staghunt.geo import parse_origin
+
+    try:
+        return parse_origin(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+_origin.__name__ = "origin"
+
+
+def add_commands(sub: Any) -> None:
+    from staghunt.missions import FORMATS
+
+    p = command(
+        sub, "export", cmd_export, "mission files of a plan for ground stations (QGC, ArduPilot, DJI, Litchi)",
+        description="Geo-reference the plan in RESULT.json, time it (common waypoint times, within "
+        "the scenario's [vehicle] limits), check separation and clearance in time, and write the "
+        "mission files to DIR: uav{n}.plan (QGroundControl), uav{n}.waypoints (QGC WPL 110), "
+        "uav{n}.kmz (DJI WPML), uav{n}.litchi.csv (Litchi), mission.kml, mission.geojson, "
+        "trajectories.csv, mission.json (timing, datums, minima), speed.png and separation.png. "
+        "docs/missions.md says how to load each.",
+        epilog="Exit codes: 0 written, 3 refused (infeasible or unsafe plan; --force writes it "
+        "marked unsafe), 2 bad input, 130 interrupted.",
+    )
+    p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
+    p.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    p.add_argument("--origin", type=_origin, metavar="LAT,LON,ALT",
+                   help="geodetic origin of the site frame's (0, 0, 0): degrees, degrees, metres AMSL "
+                   "(default: the scenario's [origin]); e.g. --origin -33.8837,151.2006,30")
+    p.add_argument("--formats", metavar="LIST", default=",".join(FORMATS),
+                   help=f"comma-separated formats (default: all: {','.join(FORMATS)})")
+    p.add_argument("--force", action="store_true", help="export an infeasible or unsafe plan, marked as such")
+    p.add_argument("--no-plots", action="store_true", help="do not draw speed.png and separation.png")
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from staghunt.missions import export_result
+    from staghunt.missions.export import ExportRefused
+
+    try:
+        report = export_result(args.result, args.out, origin=args.origin, formats=args.formats,
+                               force=args.force, plots=not args.no_plots)
+    except ExportRefused as exc:
+        error(one_line(exc))
+        return EXIT_NEGATIVE
+    s = report.safety
+    print(f"mission: {report.duration:.1f} s, waypoint times shared by the team; max speed "
+          f"{max(report.max_speed):.2f} m/s, max acceleration {max(report.max_acceleration):.2f} m/s^2"
+          + (f" (slowed {report.stretch:.2f}x to meet the limits)" if report.stretch > 1 else ""))
+    print(f"in time ({s.times} samples, step {s.step:.3f} s): min separation {min(s.min_separation):.2f} m "
+          f"(limit {max(s.separation_limit):g}), min clearance {min(s.min_clearance):.2f} m "
+          f"(required {s.required_clearance:g}), min height {min(s.min_height):.2f} m")
+    for note in s.notes[:3]:
+        print(f"note: {note}")
+    if report.warnings:
+        print(f"{PROG}: warning: exported with --force although: {report.warnings[0]}", file=sys.stderr)
+    print(f"origin {report.origin.latitude:.6f}, {report.origin.longitude:.6f}, {report.origin.altitude:g} m AMSL; "
+          f"wrote {len(report.files)} files to {args.out} in {report.seconds:.2f} s")
+    return EXIT_OK

@@ -1,0 +1,188 @@
+"""``staghunt export``: every mission file of a plan, built in memory, then written atomically.
+
+Nothing is written unless every file could be built; each file is replaced atomically. An
+infeasible plan, or trajectories that break a limit in time, are refused unless ``force``; then
+every file that has a place for it says so, and ``MISSION_UNSAFE.txt`` lists why.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from staghunt.costs import CostModel
+from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
+from staghunt.io.atomic import check_replaceable, write_text_atomic
+from staghunt.missions import formats as fm
+from staghunt.trajectory import SafetyReport, Trajectories, check_in_time, time_plan
+
+FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories")
+"""``plan`` (QGroundControl), ``waypoints`` (QGC WPL 110), ``kmz`` (DJI WPML), ``litchi``
+(Litchi CSV): one file per UAV; ``kml``, ``geojson``, ``trajectories`` (CSV): one per team."""
+
+
+class ExportRefused(ValueError):
+    """The plan is infeasible or unsafe in time and ``force`` was not given (exit 3)."""
+
+
+@dataclass(frozen=True)
+class ExportReport:
+    """What was written: ``files``; the timing (``duration`` s, ``stretch``, per UAV
+    ``max_speed``, ``max_acceleration``); the in-time ``safety``; ``seconds`` spent."""
+
+    files: tuple[Path, ...]
+    origin: GeoOrigin
+    duration: float
+    stretch: float
+    max_speed: tuple[float, ...]
+    max_acceleration: tuple[float, ...]
+    safety: SafetyReport
+    warnings: tuple[str, ...] = field(default=())
+    seconds: float = 0.0
+
+
+def _parse_formats(formats: Any) -> tuple[str, ...]:
+    if formats is None:
+        return FORMATS
+    items = [f.strip() for f in (formats.split(",") if isinstance(formats, str) else formats)]
+    unknown = [f for f in items if f not in FORMATS]
+    if unknown or not items:
+        raise ValueError(f"unknown format {unknown[0] if unknown else ''!r}; choose from {', '.join(FORMATS)}")
+    return tuple(dict.fromkeys(items))
+
+
+def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = None,
+                  formats: Any = None, force: bool = False, plots: bool = True,
+                  data: dict[str, Any] | None = None) -> ExportReport:
+    """Export the plan of ``result_path`` (a ``result.json``) to ``out_dir``.
+
+    ``origin``: the site frame's geodetic origin (default: the scenario's; one of them is
+    needed). Raises ``ValueError`` with one line for bad input, :class:`ExportRefused` for an
+    infeasible or unsafe plan without ``force``."""
+    from staghunt.analysis.certify import plan_from_result_data
+    from staghunt.io.result_json import read_result
+
+    t0 = time.perf_counter()
+    chosen = _parse_formats(formats)
+    if data is None:
+        data = read_result(result_path)
+    scenario, _, _ = plan_from_result_data(data, str(result_path))
+    origin = origin if origin is not None else scenario.origin
+    if origin is None:
+        raise ValueError(f"{result_path}: the scenario has no [origin]; give --origin LAT,LON,ALT")
+    check_origin(origin, "--origin" if origin is not scenario.origin else "scenario origin")
+    out = Path(out_dir)
+    if not str(out_dir).strip():
+        raise ValueError("--out must not be empty")
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {str(out)!r} exists and is not a directory")
+    paths = np.array([u["path"] for u in data["uavs"]], dtype=float)  # (N, K + 2, 3) absolute
+    names = [u.name for u in scenario.team]
+    model = CostModel.from_scenario(scenario)
+    traj = time_plan(paths, scenario.vehicle)
+    safety = check_in_time(model, traj, names)
+    problems = []
+    if data.get("status") != "feasible":
+        problems.append(f"the plan is {data.get('status')!r}: {data.get('message', '')}")
+    problems += list(safety.problems)
+    if problems and not force:
+        raise ExportRefused(f"{result_path}: not exported: {problems[0]}"
+                            + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
+                            + "; --force writes the files anyway, marked unsafe")
+    note = "UNSAFE: " + problems[0] if problems else ""
+    files = _build(scenario, model, traj, origin, chosen, names, note[:200])
+    if problems:
+        files["MISSION_UNSAFE.txt"] = "This mission was exported with --force although:\n" + \
+            "\n".join(f"- {p}" for p in problems) + "\nDo not fly it as it is.\n"
+    summary = _summary(data, origin, traj, safety, problems, names)
+    files["mission.json"] = json.dumps(summary, indent=1) + "\n"
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+        for name in files:
+            check_replaceable(out / name)
+        written = []
+        for name, content in files.items():
+            target = out / name
+            if isinstance(content, bytes):
+                from staghunt.io.atomic import atomic_file
+
+                with atomic_file(target, "wb") as fh:
+                    fh.write(content)
+            else:
+                write_text_atomic(content, target)
+            written.append(target)
+    except OSError as exc:
+        raise ValueError(f"cannot write to {str(out)!r}: {exc.strerror or exc}") from None
+    if plots:
+        from staghunt.plots.mission import save_mission_figures
+
+        written += save_mission_figures(traj, scenario, out)
+    return ExportReport(files=tuple(written), origin=origin, duration=traj.duration, stretch=traj.stretch,
+                        max_speed=tuple(float(v) for v in traj.max_speed),
+                        max_acceleration=tuple(float(v) for v in traj.max_acceleration),
+                        safety=safety, warnings=tuple(problems), seconds=time.perf_counter() - t0)
+
+
+def _build(scenario: Any, model: CostModel, traj: Trajectories, origin: GeoOrigin,
+           chosen: tuple[str, ...], names: list[str], note: str) -> dict[str, str | bytes]:
+    geo = site_to_geodetic(traj.points, origin)  # (N, M, 3)
+    starts = traj.points[:, 0]
+    ground = np.stack([starts[:, 0], starts[:, 1], model.terrain.height(starts[:, 0], starts[:, 1])], axis=-1)
+    homes = site_to_geodetic(ground, origin)  # (N, 3) takeoff points
+    speeds = np.clip(traj.leg_speeds(), 0.1, scenario.vehicle.max_speed)
+    cruise = scenario.vehicle.cruise_speed
+    files: dict[str, str | bytes] = {}
+    for n in range(len(names)):
+        stem = f"uav{n + 1}"
+        if "plan" in chosen:
+            files[f"{stem}.plan"] = fm.qgc_plan(geo[n], speeds[n], homes[n], cruise, note)
+        if "waypoints" in chosen:
+            files[f"{stem}.waypoints"] = fm.qgc_wpl(geo[n], speeds[n], homes[n])
+        if "kmz" in chosen:
+            files[f"{stem}.kmz"] = fm.dji_kmz(geo[n], speeds[n], homes[n], cruise,
+                                              f"{names[n]}" + (f" {note}" if note else ""))
+        if "litchi" in chosen:
+            files[f"{stem}.litchi.csv"] = fm.litchi_csv(geo[n], speeds[n], homes[n])
+    if "kml" in chosen:
+        files["mission.kml"] = fm.team_kml(list(geo), names, note)
+    if "geojson" in chosen:
+        files["mission.geojson"] = fm.team_geojson(list(geo), names, traj.times, note)
+    if "trajectories" in chosen:
+        t = traj.grid()
+        pos, vel = traj.sample(t)
+        files["trajectories.csv"] = fm.trajectories_csv(t, pos, vel)
+    return files
+
+
+def _summary(data: dict[str, Any], origin: GeoOrigin, traj: Trajectories, safety: SafetyReport,
+             problems: list[str], names: list[str]) -> dict[str, Any]:
+    return {
+        "format": "staghunt-mission/1",
+        "method": data.get("method"), "seed": data.get("seed"), "plan_status": data.get("status"),
+        "origin": {"latitude": origin.latitude, "longitude": origin.longitude,
+                   "altitude_amsl_m": origin.altitude},
+        "altitude_datums": {
+            "plan, waypoints": "relative to home = ground under the UAV's start (MAV_FRAME 3)",
+            "kmz": "relativeToStartPoint (the same takeoff point)",
+            "litchi": "altitudemode 0, relative to the takeoff point",
+            "kml, geojson": "metres above mean sea level",
+            "trajectories": "site frame z (absolute; AMSL = origin altitude + z)",
+        },
+        "duration_s": traj.duration, "stretch": traj.stretch,
+        "waypoint_times_s": [float(t) for t in traj.times],
+        "max_speed_m_s": dict(zip(names, (float(v) for v in traj.max_speed))),
+        "max_acceleration_m_s2": dict(zip(names, (float(v) for v in traj.max_acceleration))),
+        "in_time": {"samples": safety.times, "step_s": safety.step,
+                    "min_separation_m": dict(zip(names, safety.min_separation)),
+                    "separation_limit_m": dict(zip(names, safety.separation_limit)),
+                    "min_clearance_m": dict(zip(names, safety.min_clearance)),
+                    "required_clearance_m": safety.required_clearance,
+                    "min_height_m": dict(zip(names, safety.min_height)),
+                    "notes": list(safety.notes)},
+        "safe": not problems, "problems": problems,
+    }
