@@ -151,8 +151,9 @@ def test_waypoints_file_read_by_pymavlink(planned, exported):
 
 
 def test_plan_file_has_every_field_qgroundcontrol_reads(planned, exported):
-    """The fields QGroundControl's PlanMasterController / MissionController / SimpleMissionItem
-    loaders read (src/MissionManager), checked strictly."""
+    """The fields of QGroundControl's plan file format (its developer guide, "Plan File Format")
+    that its mission loader reads, checked strictly: top level, mission, SimpleItem (7 params),
+    geoFence and rallyPoints version 2."""
     scenario, result, _ = planned
     out, _ = exported
     for n in range(3):
