@@ -32,6 +32,7 @@ import numpy as np
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import ModelArrays, SwarmArrays, model_arrays, swarm_arrays
+from staghunt.engine.scratch import Scratch, borrow, give_back
 from staghunt.engine.threads import AdaptiveThreads, BlockRunner, usable_cores
 from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.problem import SwarmProblem
@@ -52,62 +53,6 @@ HELPER_ENTRIES = ("uav_pass",)
 
 _ready = threading.Event()
 _prepare_lock = threading.Lock()
-
-
-class Scratch:
-    """One thread's block buffers for ``N`` UAVs, ``K`` waypoints, ``S`` swarms, ``B`` lanes
-    (shapes in :mod:`staghunt.engine.kernels`)."""
-
-    def __init__(self, N: int, K: int, S: int, B: int) -> None:
-        S1 = K + 1
-        self.B = B
-        self.sww = np.zeros((max(S, 1), 3, K, B))
-        self.px = np.zeros((N, K + 2, B))
-        self.py = np.zeros((N, K + 2, B))
-        self.pz = np.zeros((N, K + 2, B))
-        self.ph = np.zeros((N, K, B))
-        self.seg = np.zeros((5, S1, B))
-        self.sub = np.zeros((6, S1, B))
-        self.ang = np.zeros((2, S1, B))
-        self.form = np.zeros((3, N, S1, B))
-        self.hit = np.zeros((2, S1, B))
-        self.rx = np.zeros((K + 2, B))
-        self.ry = np.zeros((K + 2, B))
-        self.rz = np.zeros((K + 2, B))
-        self.terms = np.zeros((N, 5, B))
-        self.vio = np.zeros((N, 3, B))
-        self.res = np.zeros((3, N, B))
-        self.tmp = np.zeros((max(S1, 3 * N, 8), B))
-        self.stx = np.zeros(B)
-        self.sty = np.zeros(B)
-        self.sth = np.zeros(B)
-        self.prev = np.zeros((3, B))
-        self.acc = np.zeros(B)
-        self.acc2 = np.zeros(B)
-        self.flag = np.zeros(B)
-        self.better = np.zeros(B)
-        self.bits1 = np.zeros(B, dtype=np.uint64)
-        self.bits2 = np.zeros(B, dtype=np.uint64)
-
-
-_POOL: dict[tuple[int, int, int, int], list[Scratch]] = {}
-_POOL_LOCK = threading.Lock()
-_POOL_KEEP = 8
-"""Idle buffers kept per shape: many short runs (``game``'s replies, the polish's evaluations)
-would otherwise spend more time allocating buffers than computing."""
-
-
-def _borrow(shape: tuple[int, int, int, int], count: int) -> list[Scratch]:
-    with _POOL_LOCK:
-        free = _POOL.setdefault(shape, [])
-        taken = [free.pop() for _ in range(min(count, len(free)))]
-    return taken + [Scratch(*shape) for _ in range(count - len(taken))]
-
-
-def _give_back(shape: tuple[int, int, int, int], scratch: list[Scratch]) -> None:
-    with _POOL_LOCK:
-        free = _POOL.setdefault(shape, [])
-        free.extend(scratch[: max(0, _POOL_KEEP - len(free))])
 
 
 class _Pass:
@@ -142,12 +87,12 @@ class _Pass:
     def ensure_scratch(self, threads: int) -> None:
         """Borrow block buffers for ``threads`` threads from the pool (see :meth:`release`)."""
         if len(self.scratch) < threads:
-            self.scratch += _borrow((self.N, self.K, self.S, self.B), threads - len(self.scratch))
+            self.scratch += borrow((self.N, self.K, self.S, self.B), threads - len(self.scratch))
 
     def release(self) -> None:
         """Give the block buffers back to the pool: the next run of the same shape reuses them
         (every kernel writes a buffer before it reads it, within each block)."""
-        _give_back((self.N, self.K, self.S, self.B), self.scratch)
+        give_back((self.N, self.K, self.S, self.B), self.scratch)
         self.scratch = []
 
     def block(self, q0: int, nb: int, worker: int, entries: Iterable[str] = ("uav_pass", "team_pass")) -> None:

@@ -6,8 +6,8 @@ from staghunt.scenario.loader import (
     builtin_path,
     load_scenario,
     scenario_from_dict,
-    scenario_to_dict,
 )
+from staghunt.scenario.dump import scenario_to_dict
 from staghunt.scenario.model import CostParams, Scenario, SolverSettings
 
 __all__ = [
