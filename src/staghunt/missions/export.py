@@ -17,7 +17,7 @@ import numpy as np
 
 from staghunt.costs import CostModel
 from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
-from staghunt.io.atomic import check_replaceable, write_text_atomic
+from staghunt.io.atomic import atomic_file, check_replaceable, write_text_atomic
 from staghunt.missions import formats as fm
 from staghunt.trajectory import SafetyReport, Trajectories, check_in_time, time_plan
 
@@ -109,8 +109,6 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
         for name, content in files.items():
             target = out / name
             if isinstance(content, bytes):
-                from staghunt.io.atomic import atomic_file
-
                 with atomic_file(target, "wb") as fh:
                     fh.write(content)
             else:

@@ -159,13 +159,9 @@ def check_in_time(model: CostModel, traj: Trajectories, names: list[str], step: 
         free = pos[:, :1].copy()
         free[..., 2] -= model.terrain.height(free[..., 0], free[..., 1])
     m = plan_metrics(model, free)
+    # violations() already judges obstacles against R + r + min_clearance, the ceiling, the
+    # ground and the separation at every instant.
     problems = [f"in time: {v}" for v in violations(model, free, names)]
-    clearance_short = m.min_clearance < model.min_clearance
-    for n in np.flatnonzero(clearance_short):
-        line = (f"in time: {names[n]} comes within {m.min_clearance[n]:.3g} m of an obstacle "
-                f"(required {model.min_clearance:g} m)")
-        if not any(names[n] in p and "inside" in p for p in problems):
-            problems.append(line)
     notes = outside_site(model, free, names)
     return SafetyReport(
         times=len(t), step=float(t[1] - t[0]) if len(t) > 1 else 0.0,
