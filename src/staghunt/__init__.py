@@ -1,6 +1,7 @@
 """staghunt: cooperative multi-UAV path planning as a stag hunt game, solved to certified equilibria."""
 
 from staghunt.api import plan
+from staghunt.flight import FlightResult, FlyConfig, fly
 from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, ScenarioError, load_scenario
 from staghunt.solvers.response import Certificate, CertifyOptions
@@ -8,6 +9,6 @@ from staghunt.solvers.response import Certificate, CertifyOptions
 __version__ = "0.2.0"
 
 __all__ = [
-    "Certificate", "CertifyOptions", "PlanResult", "Scenario", "ScenarioError", "Status", "__version__",
-    "load_scenario", "plan",
+    "Certificate", "CertifyOptions", "FlightResult", "FlyConfig", "PlanResult", "Scenario", "ScenarioError", "Status", "__version__",
+    "fly", "load_scenario", "plan",
 ]

@@ -14,10 +14,12 @@ def add_commands(sub: Any) -> None:
     command(sub, "scenarios", cmd_scenarios, "list the built-in scenarios")
     add_scenario_argument(command(sub, "show", cmd_show, "print a validated scenario as JSON"))
     command(sub, "methods", cmd_methods, "list the planning methods")
-    command(sub, "schema", cmd_schema, "print the JSON Schema of the scenario file format",
-            description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
-            "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
-            "TOML support at it (see docs/scenario-format.md).")
+    p = command(sub, "schema", cmd_schema, "print the JSON Schema of the scenario file format",
+                description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
+                "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
+                "TOML support at it (see docs/scenario-format.md).")
+    p.add_argument("--events", action="store_true",
+                   help="the schema of an events file ('staghunt fly --events FILE') instead")
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -53,7 +55,8 @@ def cmd_methods(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
-    from staghunt.scenario.schema import json_schema
+    from staghunt.scenario.schema import EventsFile, json_schema
 
-    print(json.dumps(json_schema(), indent=2, ensure_ascii=False))
+    schema = json_schema(EventsFile) if args.events else json_schema()
+    print(json.dumps(schema, indent=2, ensure_ascii=False))
     return EXIT_OK

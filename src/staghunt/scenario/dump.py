@@ -57,7 +57,9 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     s = scenario.solver
     f = scenario.formation
     o = scenario.origin
-    return {
+    from staghunt.scenario.dynamics import dynamics_to_dict
+
+    out = {
         "name": scenario.name,
         "description": scenario.description,
         "site": {k: float(getattr(b, k)) for k in SITE_KEYS},
@@ -112,3 +114,6 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         },
         "vehicle": {k.name: float(getattr(scenario.vehicle, k.name)) for k in fields(VehicleLimits)},
     }
+    if not scenario.dynamics.empty:
+        out.update(dynamics_to_dict(scenario.dynamics))
+    return out

@@ -392,6 +392,10 @@ def scenario_from_dict(
         team = _team(f.team)
         _check_team_in_world(team, world, costs)
         formation = _formation(f.formation, team, terrain)
+    from staghunt.scenario.dynamics import check_disappearing, dynamics_from_tables
+
+    dynamics, _ = dynamics_from_tables(f, world)
+    check_disappearing(dynamics, world)
     return Scenario(
         name=scenario_name,
         description=f.description,
@@ -402,4 +406,5 @@ def scenario_from_dict(
         solver=SolverSettings(**f.solver.model_dump()),
         origin=origin,
         vehicle=VehicleLimits(**f.vehicle.model_dump()),
+        dynamics=dynamics,
     )

@@ -9,6 +9,7 @@ import numpy as np
 
 from staghunt.task import UAV, Formation, VehicleLimits
 from staghunt.world import GeoOrigin, World
+from staghunt.world.dynamic import Dynamics
 
 
 @dataclass(frozen=True)
@@ -65,7 +66,8 @@ class Scenario:
 
     ``origin``: the geodetic origin of the site frame (``None``: the scenario is not
     geo-referenced; exports then need one given explicitly). ``vehicle``: the team's flight
-    limits."""
+    limits. ``dynamics``: what changes in flight (moving obstacles, events, sensing; empty for a
+    frozen site), used by ``fly``."""
 
     name: str
     description: str
@@ -76,6 +78,7 @@ class Scenario:
     solver: SolverSettings
     origin: GeoOrigin | None = None
     vehicle: VehicleLimits = VehicleLimits()
+    dynamics: Dynamics = Dynamics()
 
     @property
     def n_uavs(self) -> int:

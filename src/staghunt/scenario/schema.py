@@ -26,7 +26,7 @@ from staghunt.scenario.errors import fmt as _fmt
 from staghunt.scenario.model import CostParams, SolverSettings
 from staghunt.task import VehicleLimits
 
-__all__ = ["ScenarioFile", "json_schema"]
+__all__ = ["EventsFile", "ScenarioFile", "json_schema"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -290,6 +290,115 @@ class Vehicle(_Table):
         return self
 
 
+
+# --------------------------------------------------------------------------------------------
+# A site that changes (docs/scenario-format.md, "A site that changes"; used by `staghunt fly`)
+# --------------------------------------------------------------------------------------------
+
+Seconds = Annotated[float, Field(ge=0, description="s after take-off")]
+XY = Annotated[list[Number], Field(min_length=2, max_length=2, description="[x, y] in the site frame (m)")]
+RepeatKind = Literal["stop", "reverse"]
+
+
+class MovingTable(_Table):
+    """A cylinder with a known motion (a truck, a load on a hook): infinitely tall like the
+    static obstacles, its axis moving along ``path`` at ``speed`` from ``start_time`` on."""
+
+    name: Annotated[str, Field(pattern=r"\S")]
+    radius: Annotated[float, Field(gt=0, description="m")]
+    path: Annotated[list[XY], Field(min_length=2, description="[[x, y], ...] polyline of the axis (m)")]
+    speed: Annotated[float, Field(gt=0, description="m/s along the path")]
+    start_time: Seconds = 0.0
+    repeat: RepeatKind = Field("stop", description="at the end: 'stop' there, or run the path back and forth ('reverse')")
+
+
+class JibTable(_Table):
+    """A crane jib that slews: a box ``length`` m ahead of the pivot (plus ``counter`` behind),
+    ``width`` m wide, from ``base`` to ``height`` m above the ground at the pivot, turning from
+    ``angle_from`` to ``angle_to`` (degrees counter-clockwise from east) at ``rate`` deg/s."""
+
+    name: Annotated[str, Field(pattern=r"\S")]
+    pivot: XY
+    length: Annotated[float, Field(gt=0, description="m from the pivot to the tip")]
+    counter: Annotated[float, Field(ge=0, description="m of counter-jib behind the pivot")] = 0.0
+    width: Annotated[float, Field(gt=0, description="m")]
+    base: Annotated[float, Field(ge=0, description="m above the ground at the pivot")]
+    height: Annotated[float, Field(gt=0, description="top, m above the ground at the pivot")]
+    angle_from: Annotated[float, Field(ge=-360, le=360, description="degrees, counter-clockwise from east")]
+    angle_to: Annotated[float, Field(ge=-360, le=360, description="degrees")]
+    rate: Annotated[float, Field(gt=0, le=90, description="deg/s")]
+    start_time: Seconds = 0.0
+    repeat: RepeatKind = "stop"
+
+    @model_validator(mode="after")
+    def _order(self) -> "JibTable":
+        if self.height <= self.base:
+            raise _fail("height", f"must be above base = {_fmt(self.base)}, got {_fmt(self.height)}")
+        return self
+
+
+class EventTable(_Table):
+    """A change at ``time``: ``appear`` (a cylinder ``x``, ``y``, ``radius`` through the whole
+    height band, or a ``polygon``, a no-fly zone unless ``height`` makes it a prism from
+    ``base``), unknown to the plan until a UAV senses it; ``disappear`` (the obstacle ``name``)."""
+
+    time: Seconds
+    kind: Literal["appear", "disappear"]
+    name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="appear: default 'pop-up <i>'; disappear: required")
+    x: Optional[Number] = None
+    y: Optional[Number] = None
+    radius: Optional[Annotated[float, Field(gt=0, description="m")]] = None
+    polygon: Optional[Polygon] = None
+    base: Optional[Annotated[float, Field(ge=0, description="m above ground (polygon)")]] = None
+    height: Optional[Annotated[float, Field(gt=0, description="top, m above ground (polygon); absent: a no-fly zone")]] = None
+
+    @model_validator(mode="after")
+    def _shape(self) -> "EventTable":
+        given = {k for k in ("x", "y", "radius", "polygon", "base", "height") if getattr(self, k) is not None}
+        if self.kind == "disappear":
+            if self.name is None:
+                raise _fail("name", "required key is missing (the obstacle that disappears)")
+            if given:
+                raise _fail(sorted(given)[0], "not used with kind = 'disappear'")
+            return self
+        circle = {"x", "y", "radius"}
+        if self.polygon is None:
+            missing = sorted(circle - given)
+            if missing:
+                raise _fail(missing[0], "required key is missing (or give a polygon)")
+            if given & {"base", "height"}:
+                raise _fail(sorted(given & {"base", "height"})[0], "only used with a polygon")
+        else:
+            if given & circle:
+                raise _fail(sorted(given & circle)[0], "give either x, y and radius or a polygon, not both")
+            if self.base is not None and self.height is None:
+                raise _fail("height", "required with base")
+            if self.height is not None and self.height <= (self.base or 0.0):
+                raise _fail("height", f"must be above base = {_fmt(self.base or 0.0)}, got {_fmt(self.height)}")
+        return self
+
+
+class SensingTable(_Table):
+    """What the planner learns in flight."""
+
+    range: Annotated[float, Field(gt=0, description="m: an appeared obstacle is sensed once a UAV is this close (horizontally)")] = 40.0
+    rate: Annotated[float, Field(ge=10, le=100, description="Hz: state feedback and planner ticks")] = 10.0
+    position_noise: Annotated[float, Field(ge=0, le=10, description="m, standard deviation of the fed-back positions")] = 0.0
+    velocity_noise: Annotated[float, Field(ge=0, le=10, description="m/s, standard deviation of the fed-back velocities")] = 0.0
+
+
+class EventsFile(_Table):
+    """An events file (``staghunt fly --events FILE``): what changes in flight, added to the
+    scenario's own (its [sensing] replaces the scenario's)."""
+
+    model_config = ConfigDict(title="staghunt events")
+
+    events: list[EventTable] = []
+    moving: list[MovingTable] = []
+    jibs: list[JibTable] = []
+    sensing: Optional[SensingTable] = None
+
+
 class ScenarioFile(_Table):
     """A staghunt scenario (TOML): site, ground, obstacles, team, formation, costs, solver."""
 
@@ -312,7 +421,10 @@ class ScenarioFile(_Table):
     costs: Costs = Field(default_factory=Costs)
     solver: Solver = Field(default_factory=Solver)
     vehicle: Vehicle = Field(default_factory=Vehicle)
-
+    moving: list[MovingTable] = []
+    jibs: list[JibTable] = []
+    events: list[EventTable] = []
+    sensing: Optional[SensingTable] = None
 
     @model_validator(mode="after")
     def _team_or_fleet(self) -> "ScenarioFile":
@@ -323,6 +435,7 @@ class ScenarioFile(_Table):
         return self
 
 
-def json_schema() -> dict[str, Any]:
-    """The JSON Schema (draft 2020-12) of the scenario format."""
-    return {"$schema": "https://json-schema.org/draft/2020-12/schema", **ScenarioFile.model_json_schema()}
+def json_schema(model: type[_Table] | None = None) -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of the scenario format (or of ``EventsFile``)."""
+    model = model or ScenarioFile
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", **model.model_json_schema()}

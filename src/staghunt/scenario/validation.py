@@ -187,13 +187,14 @@ def _message(err: Any) -> tuple[str, str]:
     return key_path(loc), f"{err['msg']}, {got}"  # not expected: pydantic's own words
 
 
-def validate(data: Any) -> ScenarioFile:
-    """Check plain data (:func:`plain` of a parsed TOML document) against the format; raise
+def validate(data: Any, model: type[BaseModel] = ScenarioFile) -> Any:
+    """Check plain data (:func:`plain` of a parsed TOML document) against the format (``model``:
+    :class:`ScenarioFile`, or ``EventsFile``, whose tables are the scenario's own); raise
     :class:`ScenarioError` naming the first problem found."""
     if not isinstance(data, Mapping):
         raise ScenarioError(f"expected a table, got {_kind(data)}")
     try:
-        return ScenarioFile.model_validate(data)
+        return model.model_validate(data)
     except ValidationError as exc:
         errors = exc.errors(include_url=False)
         # An unknown key first: a misspelt key also shows as a missing one.

@@ -33,6 +33,9 @@ rounds, accepted replies, reply budgets and each round's largest relative gain.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any, Callable
+
 import numpy as np
 
 from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
@@ -41,7 +44,8 @@ from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
 from staghunt.solvers.rigid import rigid_problem
-from staghunt.solvers.swarm import Progress
+from staghunt.scenario.model import SolverSettings
+from staghunt.solvers.swarm import Progress, SwarmRunner
 
 SEED_SHARE = 0.10
 """Share of the budget spent on the rigid seed."""
@@ -180,32 +184,44 @@ def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], r
     return np.stack(enc)[:particles]
 
 
-@register("game", "stag-hunt game solved to an equilibrium: rigid seed, then best-response rounds (default)")
-def solve_game(run: MethodRun) -> SolverOutput:
-    scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
-    runner, evaluator = run.runner, run.evaluator
-    model = CostModel.from_scenario(scenario)
-    N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
-    budget = P * (I + 1) * N
-    history = np.full((I + 1, N), np.nan)
-    unit = P * N  # evaluations per row of history
+@dataclass(frozen=True, eq=False)
+class RoundsOutcome:
+    """What :func:`best_response_rounds` ends with: the ``(N, K, 3)`` ``plan``, its ``(N,)``
+    ``costs`` ``J_n`` (``inf`` while infeasible), the path ``evaluations`` counted so far
+    (including those spent before the rounds), the ``rounds`` (one dict each), the
+    ``accepted`` replies and whether the rounds ``converged``."""
 
-    # 1. Seed: the rigid formation.
-    seed_iters = max(0, int(SEED_SHARE * (I + 1)) - 1)
-    seed_settings = settings.with_(iterations=seed_iters)
-    seed = runner(rigid_problem(model, K, settings.velocity_fraction), seed_settings, rng,
-                  None if progress is None else _Rows(progress, I))
-    spent = seed.path_evaluations
-    history[: seed_iters + 1] = seed.record_history
-    plan = np.array(seed.best_waypoints)
-    J = evaluate(model, plan[None]).total[0]
+    plan: np.ndarray
+    costs: np.ndarray
+    evaluations: int
+    rounds: list[dict[str, Any]]
+    accepted: int
+    converged: bool
+
+
+def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSettings,
+                         rng: np.random.Generator, runner: SwarmRunner, evaluator: Evaluator,
+                         budget: int, spent: int = 0,
+                         on_reply: Callable[[int, np.ndarray], None] | None = None,
+                         repair: bool = False, reply_start: float = REPLY_START) -> RoundsOutcome:
+    """Steps 2-4 of the method from the allocation ``plan`` ``(N, K, 3)``: best-response
+    rounds until they converge or ``budget`` path evaluations (``spent`` of them already used)
+    are spent. ``on_reply(spent, J)`` follows every reply.
+
+    ``repair``: the starting plan may be infeasible (a re-plan warm-started from a plan that a
+    new obstacle cuts): while the plan is infeasible, a reply is accepted when it lowers the
+    plan's total violation, and counts as a full gain; once feasible, the usual rule applies.
+    Without ``repair`` only feasible improvements are ever accepted. ``reply_start``: the first
+    reply budget as a share of the budget left (a warm re-plan starts near an equilibrium and
+    gains from few strong replies rather than many weak ones)."""
+    N, P = model.n_uavs, settings.particles
+    plan = np.array(plan, dtype=float)
+    current = evaluate(model, plan[None])
+    J, violation = current.total[0], float(current.total_violation[0])
     replies: list[list[np.ndarray]] = [[plan[n].copy()] for n in range(N)]
-    row = seed_iters + 1
-
-    # 2.-4. Best-response rounds.
     remaining = budget - spent
-    reply_evals = max(int(REPLY_START * remaining), P)
-    rounds: list[dict[str, float | int | bool]] = []
+    reply_evals = max(int(reply_start * remaining), P)
+    rounds: list[dict[str, Any]] = []
     accepted = 0
     converged = False
     while not converged:
@@ -228,34 +244,69 @@ def solve_game(run: MethodRun) -> SolverOutput:
             candidate, used = polish(model, candidate, n, local, evaluator)
             c = evaluate(model, candidate[None])  # the reply judged by the reference: 1 more path
             spent += used + 1
-            new = c.total[0]
-            if c.total_violation[0] == 0 and new[n] < J[n] * (1.0 - ACCEPT_TOL):
-                gains[n] = (J[n] - new[n]) / J[n]
-                plan, J = candidate, new
+            new, new_violation = c.total[0], float(c.total_violation[0])
+            if violation > 0:
+                better = repair and new_violation < violation
+            else:
+                better = new_violation == 0 and new[n] < J[n] * (1.0 - ACCEPT_TOL)
+            if better:
+                gains[n] = 1.0 if violation > 0 else (J[n] - new[n]) / J[n]
+                plan, J, violation = candidate, new, new_violation
                 replies[n].append(plan[n].copy())
                 del replies[n][:-4]
                 accepted += 1
-            last = min(I + 1, spent // unit)
-            history[row:last] = J
-            row = max(row, last)
-            if progress is not None:
-                progress(min(I, max(0, last - 1)), I, J.copy())
+            if on_reply is not None:
+                on_reply(spent, J)
         strong = p_r * (i_r + 1) + local >= VERIFY_EVALUATIONS
         rounds.append({"reply_particles": p_r, "reply_iterations": i_r,
                        "max_relative_gain": float(gains.max()), "relative_gains": gains.tolist(),
                        "verification": bool(strong)})
-        converged = bool(strong and gains.max() <= EPSILON * STOP_FRACTION)
+        converged = bool(strong and (violation == 0 or not repair) and gains.max() <= EPSILON * STOP_FRACTION)
         if gains.max() < GROW_BELOW:
             reply_evals *= 2
+    return RoundsOutcome(plan, J, int(spent), rounds, accepted, converged)
+
+
+@register("game", "stag-hunt game solved to an equilibrium: rigid seed, then best-response rounds (default)")
+def solve_game(run: MethodRun) -> SolverOutput:
+    scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
+    runner, evaluator = run.runner, run.evaluator
+    model = CostModel.from_scenario(scenario)
+    N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
+    budget = P * (I + 1) * N
+    history = np.full((I + 1, N), np.nan)
+    unit = P * N  # evaluations per row of history
+
+    # 1. Seed: the rigid formation.
+    seed_iters = max(0, int(SEED_SHARE * (I + 1)) - 1)
+    seed_settings = settings.with_(iterations=seed_iters)
+    seed = runner(rigid_problem(model, K, settings.velocity_fraction), seed_settings, rng,
+                  None if progress is None else _Rows(progress, I))
+    spent = seed.path_evaluations
+    history[: seed_iters + 1] = seed.record_history
+    plan = np.array(seed.best_waypoints)
+
+    # 2.-4. Best-response rounds.
+    state = {"row": seed_iters + 1}
+
+    def record(spent_now: int, J_now: np.ndarray) -> None:
+        last = min(I + 1, spent_now // unit)
+        history[state["row"]:last] = J_now
+        state["row"] = max(state["row"], last)
+        if progress is not None:
+            progress(min(I, max(0, last - 1)), I, J_now.copy())
+
+    out = best_response_rounds(model, plan, settings, rng, runner, evaluator, budget, spent, record)
+    plan, J, spent, row = out.plan, out.costs, out.evaluations, state["row"]
     history[row:] = J
     if progress is not None:
         progress(I, I, J.copy())
     details = {
         "seed": "rigid",
         "seed_evaluations": int(seed.path_evaluations),
-        "rounds": rounds,
-        "accepted_replies": accepted,
-        "converged": converged,
+        "rounds": out.rounds,
+        "accepted_replies": out.accepted,
+        "converged": out.converged,
         "unspent_evaluations": int(budget - spent),
     }
     return SolverOutput(

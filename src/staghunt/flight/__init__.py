@@ -1,0 +1,10 @@
+"""The closed loop of the paper's Fig. 1 in simulation: simulated multirotors fly the plan
+(:mod:`~staghunt.flight.vehicles`), the planner senses the changing site and re-solves the game
+in flight (:mod:`~staghunt.flight.replan`) along a spliced reference
+(:mod:`~staghunt.flight.reference`); :mod:`~staghunt.flight.safety` judges separations and
+clearances at the same instant; :func:`fly` runs an episode (:mod:`~staghunt.flight.loop`)."""
+
+from staghunt.flight.loop import FlightInputError, FlightResult, FlightStatus, fly
+from staghunt.flight.replan import FlyConfig, ReplanRecord
+
+__all__ = ["FlightInputError", "FlightResult", "FlightStatus", "FlyConfig", "ReplanRecord", "fly"]

@@ -1,0 +1,248 @@
+"""The team's reference trajectory in flight: timed pieces spliced one after the other.
+
+A piece is either
+
+- a **timed path** (:func:`timed_path`): every UAV flies a quintic spline through its planned
+  points (the switch state, the ``K`` free waypoints, the goal), each leg split into the same
+  number of sub-legs of at most 3 m for the whole team, with **common waypoint times** (the
+  formation is defined per waypoint index). The dense points keep the spline within about
+  0.15 m of the planned polyline (a spline through the ``K + 2`` points alone cuts corners by
+  1-2 m, through obstacles' clearance). The spline starts with the given velocity and
+  acceleration (those of the trajectory it replaces, so a splice is continuous in position,
+  velocity and acceleration) and ends at rest. Times come from a speed profile
+  (:func:`knot_times`: cruise speed, slower in turns, accelerations within half the limit),
+  and if a peak still breaks ``max_speed`` or ``max_acceleration`` (norms, checked on a 20 ms
+  grid) the whole schedule is stretched; or
+- a **synchronised stop** (:func:`stop_piece`): the previous piece with time slowed down by
+  one common warp ``tau(t)``, ``tau' = 1 - (3u^2 - 2u^3)``, ``u = (t - t_s) / T``: every UAV
+  stays on its planned path (so the separations and clearances already checked still hold),
+  and all of them come to rest together at the same path parameter. ``tau'' = 0`` at both ends,
+  so position, velocity and acceleration are continuous; ``T`` is the shortest that keeps the
+  acceleration within ``max_acceleration``.
+
+Why scipy's ``make_interp_spline`` (k = 5) and not toppra or a minimum-snap package: the splice
+needs position, velocity *and* acceleration imposed at the switch for the whole team at once
+with shared knot times; a quintic interpolating B-spline takes exactly those end conditions.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from scipy.interpolate import BSpline, make_interp_spline
+
+from staghunt.task import VehicleLimits
+
+CHECK_STEP_S = 0.02
+"""Grid of the speed and acceleration checks (s)."""
+MARGIN = 0.98
+"""Peaks are kept below this share of the limits (the grid may miss a peak between samples)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Piece:
+    """One piece of the reference, valid from ``t0`` (s after take-off) until the next piece
+    starts; after ``t1`` the team holds the piece's last point.
+
+    - ``kind``: ``"path"`` (a timed path) or ``"stop"`` (a synchronised stop of ``base``).
+    - ``spline``: for a path, a :class:`BSpline` over ``[t0, t1]`` with values ``(N, 3)``.
+    - ``base``, ``duration``: for a stop, the piece it slows down and the warp's length ``T``.
+    - ``knots``: ``(M,)`` the waypoint times; ``points``: ``(N, M, 3)`` the planned points.
+    """
+
+    kind: Literal["path", "stop"]
+    t0: float
+    t1: float
+    knots: np.ndarray
+    points: np.ndarray
+    spline: BSpline | None = None
+    base: "Piece | None" = None
+    duration: float = 0.0
+
+    def warp(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """A stop's ``tau, tau', tau''`` at times ``t`` ``(T,)``."""
+        T = self.duration
+        u = np.clip((t - self.t0) / T, 0.0, 1.0)
+        tau = self.t0 + T * (u - u**3 + 0.5 * u**4)
+        d1 = 1.0 - (3.0 * u**2 - 2.0 * u**3)
+        d2 = -(6.0 * u - 6.0 * u**2) / T
+        return tau, d1, d2
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        """``(4, N, T, 3)``: position, velocity, acceleration and jerk at times ``t`` ``(T,)``
+        (a stop's jerk is reported as 0: the controllers used need no more than acceleration)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        if self.kind == "path":
+            assert self.spline is not None
+            tc = np.clip(t, self.t0, self.t1)
+            out = np.stack([np.moveaxis(self.spline(tc, nu=d), 0, 1) for d in range(4)])
+            moving = (t <= self.t1)[None, None, :, None]
+            out[1:] = np.where(moving, out[1:], 0.0)
+            return out
+        assert self.base is not None
+        tau, d1, d2 = self.warp(t)
+        tau = np.minimum(tau, self.base.t1)
+        b = self.base.state(tau)
+        at_end = (tau >= self.base.t1)[None, :, None]
+        vel = np.where(at_end, 0.0, b[1] * d1[None, :, None])
+        acc = np.where(at_end, 0.0, b[2] * d1[None, :, None] ** 2 + b[1] * d2[None, :, None])
+        return np.stack([b[0], vel, acc, np.zeros_like(vel)])
+
+
+@dataclass(frozen=True, eq=False)
+class Reference:
+    """The pieces in flight order; piece ``i`` holds from its ``t0`` until the next one's."""
+
+    pieces: tuple[Piece, ...]
+
+    def piece_at(self, t: float) -> Piece:
+        for p in reversed(self.pieces):
+            if t >= p.t0:
+                return p
+        return self.pieces[0]
+
+    @property
+    def arrival(self) -> float:
+        """Time the last piece comes to rest (s)."""
+        last = self.pieces[-1]
+        return last.t1
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        """``(4, N, T, 3)`` position, velocity, acceleration, jerk at times ``t`` ``(T,)``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        starts = np.array([p.t0 for p in self.pieces])
+        idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1)
+        N = self.pieces[0].points.shape[0]
+        out = np.zeros((4, N, len(t), 3))
+        for i in np.unique(idx):
+            sel = idx == i
+            out[:, :, sel] = self.pieces[i].state(t[sel])
+        return out
+
+    def spliced(self, piece: Piece) -> "Reference":
+        """The reference with ``piece`` replacing everything from ``piece.t0`` on."""
+        keep = tuple(p for p in self.pieces if p.t0 < piece.t0)
+        return Reference(keep + (piece,))
+
+
+def _peaks(spline: BSpline, t0: float, t1: float) -> tuple[float, float]:
+    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+    v = np.linalg.norm(spline(t, nu=1), axis=-1).max()
+    a = np.linalg.norm(spline(t, nu=2), axis=-1).max()
+    return float(v), float(a)
+
+
+def _quintic(times: np.ndarray, points: np.ndarray, v0: np.ndarray, a0: np.ndarray) -> BSpline:
+    y = np.moveaxis(points, 0, 1)  # (M, N, 3)
+    zero = np.zeros_like(v0)
+    return make_interp_spline(times, y, k=5, bc_type=([(1, v0), (2, a0)], [(1, zero), (2, zero)]))
+
+
+def densify(points: np.ndarray, spacing: float) -> np.ndarray:
+    """``(N, M', 3)``: every leg of ``points`` ``(N, M, 3)`` split into equal sub-legs, the same
+    number for the whole team (the longest UAV's leg at most ``spacing`` m per sub-leg), so
+    the waypoints stay shared and a spline through the result stays close to the polyline."""
+    legs = np.linalg.norm(np.diff(points, axis=1), axis=-1).max(axis=0)  # (M - 1,)
+    rows = [points[:, :1]]
+    for k, length in enumerate(legs):
+        m = max(1, math.ceil(length / spacing))
+        f = np.arange(1, m + 1) / m
+        rows.append(points[:, k:k + 1] + f[None, :, None] * (points[:, k + 1:k + 2] - points[:, k:k + 1]))
+    return np.concatenate(rows, axis=1)
+
+
+def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np.ndarray:
+    """``(M,)`` waypoint times (from 0) of the team's dense paths ``points`` ``(N, M, 3)``.
+
+    The team's speed ``u`` at each point is that of its fastest UAV on the adjacent leg. It is
+    capped by the cruise speed and, at a turn, by ``sqrt(a_t rho)`` with ``rho`` the turn's
+    radius (the mean adjacent leg length over the turning angle, for every UAV) and
+    ``a_t = max_acceleration / 2``; a forward and a backward pass then keep the speed changes
+    within ``a_t`` (from ``v0`` at the start to rest at the end); a leg takes
+    ``2 L / (u_k + u_{k+1})`` (its longest UAV leg ``L``)."""
+    seg = np.diff(points, axis=1)  # (N, M - 1, 3)
+    length = np.linalg.norm(seg, axis=-1)  # (N, M - 1)
+    L = length.max(axis=0)
+    a_t = 0.5 * limits.max_acceleration
+    cap = np.full(L.size + 1, min(limits.cruise_speed, limits.max_speed))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        unit = seg / length[..., None]
+        cos = np.clip(np.nansum(unit[:, :-1] * unit[:, 1:], axis=-1), -1.0, 1.0)  # (N, M - 2)
+        angle = np.where(np.isfinite(cos), np.arccos(cos), 0.0)
+        rho = 0.5 * (length[:, :-1] + length[:, 1:]) / angle
+    turn_cap = np.sqrt(a_t * np.where(angle > 1e-6, rho, np.inf)).min(axis=0)
+    cap[1:-1] = np.minimum(cap[1:-1], turn_cap)
+    cap[0], cap[-1] = min(cap[0], max(v0, 0.0)), 0.0
+    u = cap.copy()
+    for k in range(1, u.size):
+        u[k] = min(u[k], math.sqrt(u[k - 1] ** 2 + 2 * a_t * L[k - 1]))
+    for k in range(u.size - 2, -1, -1):
+        u[k] = min(u[k], math.sqrt(u[k + 1] ** 2 + 2 * a_t * L[k]))
+    dt = np.maximum(2.0 * L / np.maximum(u[:-1] + u[1:], 0.2), 1e-3)
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+DENSE_SPACING = 3.0
+"""Longest sub-leg (m) of the dense paths a timed path interpolates."""
+
+
+def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
+               v0: np.ndarray | None = None, a0: np.ndarray | None = None,
+               max_tries: int = 12, max_stretch: float = math.inf) -> Piece:
+    """Time the team's paths ``points`` ``(N, M, 3)`` (absolute; ``points[:, 0]`` the state at
+    ``t0``) starting with velocities ``v0`` and accelerations ``a0`` ``(N, 3)`` (default rest).
+
+    The paths are densified (:func:`densify`), timed by :func:`knot_times`, interpolated by a
+    quintic spline with the start and end conditions, and, if a peak on the check grid still
+    breaks a limit, the whole schedule is stretched. Raises ``ValueError`` if no stretch up to
+    ``max_stretch`` within ``max_tries`` meets the limits (the imposed start itself breaks
+    them: a UAV moving at speed cannot turn sharply at once, whatever the schedule after)."""
+    p = np.asarray(points, dtype=float)
+    N = p.shape[0]
+    v0 = np.zeros((N, 3)) if v0 is None else np.asarray(v0, dtype=float)
+    a0 = np.zeros((N, 3)) if a0 is None else np.asarray(a0, dtype=float)
+    legs = np.linalg.norm(np.diff(p, axis=1), axis=-1).max(axis=0)  # (M - 1,)
+    keep = np.concatenate([[True], legs > 1e-3])
+    if keep.sum() < 2:  # nobody moves: hold
+        keep[-1] = True
+    dense = densify(p[:, keep], DENSE_SPACING)
+    base = knot_times(dense, limits, float(np.linalg.norm(v0, axis=-1).max()))
+    v_lim = MARGIN * limits.max_speed
+    # The switch state's own acceleration cannot be undone by a slower schedule.
+    a_lim = max(MARGIN * limits.max_acceleration, 1.02 * float(np.linalg.norm(a0, axis=-1).max()))
+    stretch = 1.0
+    for _ in range(max_tries):
+        times = t0 + base * stretch
+        spline = _quintic(times, dense, v0, a0)
+        v, a = _peaks(spline, times[0], times[-1])
+        if v <= v_lim and a <= a_lim:
+            return Piece("path", float(times[0]), float(times[-1]), times, dense, spline=spline)
+        stretch *= max(1.05, min(2.0, max(v / v_lim, math.sqrt(a / a_lim))))
+        if stretch > max_stretch:
+            break
+    raise ValueError(f"no timing of the new paths keeps speed <= {limits.max_speed:g} m/s and "
+                     f"acceleration <= {limits.max_acceleration:g} m/s^2 (peaks {v:.3g} m/s, "
+                     f"{a:.3g} m/s^2 after a stretch of {stretch:.3g})")
+
+
+def stop_piece(ref: Reference, t_s: float, limits: VehicleLimits) -> Piece:
+    """A synchronised stop starting at ``t_s``: the piece flown at ``t_s`` slowed down to rest
+    with one common time warp (module docstring), as short as ``max_acceleration`` allows."""
+    base = ref.piece_at(t_s)
+    if base.kind == "stop":  # already stopping: keep that stop
+        return base
+    t = np.linspace(t_s, base.t1, max(2, math.ceil((base.t1 - t_s) / CHECK_STEP_S) + 1))
+    s = base.state(t)
+    v = float(np.linalg.norm(s[1], axis=-1).max())
+    T = max(0.5, 1.5 * v / (MARGIN * limits.max_acceleration))
+    for _ in range(30):
+        piece = Piece("stop", t_s, t_s + T, base.knots, base.points, base=base, duration=T)
+        grid = np.linspace(t_s, t_s + T, max(2, math.ceil(T / CHECK_STEP_S) + 1))
+        peak = float(np.linalg.norm(piece.state(grid)[2], axis=-1).max())
+        if peak <= limits.max_acceleration:
+            return piece
+        T *= 1.1
+    return piece

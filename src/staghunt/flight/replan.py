@@ -1,0 +1,484 @@
+"""Real-time trajectory modification: the game re-solved in flight (receding horizon).
+
+A re-plan at planner tick ``t_now`` switches at ``t_s = t_now + latency_budget`` (a fixed
+budget, so an episode is reproducible from its seed; the real solve time is measured and
+reported beside it). From the team's reference state at ``t_s`` (position, velocity,
+acceleration: the splice is continuous in all three) it
+
+1. builds the problem the team knows at ``t_s``: the scenario's goals, the UAVs' switch
+   positions as starts, the static obstacles, the sensed ones (:class:`KnownWorld`), and the
+   swept volumes of the known motions over the time windows where a conflict was predicted;
+2. warm-starts the game from the current plan (the rest of the reference resampled to ``K``
+   free waypoints) and runs the best-response rounds
+   (:func:`staghunt.solvers.game.best_response_rounds`, ``repair``: a warm plan cut by the new
+   obstacle is first repaired reply by reply);
+3. times the new paths from the switch state (:func:`~staghunt.flight.reference.timed_path`)
+   and checks them *in time*: clearance to the obstacles known, separation, and the known
+   motions at their true positions; a new conflict with a motion adds its window (step 1) and
+   the team solves again, up to ``attempts`` times;
+4. certifies the accepted plan (each UAV's Nash gap, :func:`staghunt.solvers.response.certify_plan`).
+
+If no attempt gives a plan that passes, the team stops: a synchronised stop to hover
+(:func:`~staghunt.flight.reference.stop_piece`), after which it re-plans with
+``stop_budget_factor`` times the budget.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from staghunt.costs import CostModel, evaluate
+from staghunt.engine import Engine
+from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
+from staghunt.flight.safety import moving_clearance, separations, static_clearance
+from staghunt.scenario import Scenario
+from staghunt.solvers.game import best_response_rounds
+from staghunt.solvers.response import certify_plan
+from staghunt.world import Cylinder, Prism
+from staghunt.world.dynamic import Dynamics, max_motion_speed, motion_names
+
+CHECK_STEP_S = 0.05
+"""Time step of the in-time checks of a new piece and of the horizon (s)."""
+MAX_STRETCH = 2.0
+"""A plan from a moving switch state that must be slowed more than this to meet the limits
+(a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
+
+
+@dataclass(frozen=True)
+class FlyConfig:
+    """Settings of a closed-loop flight.
+
+    - ``sim_rate``: simulation steps per second (Hz, >= 100).
+    - ``latency_budget``: seconds between the tick that triggers a re-plan and its switch time.
+    - ``horizon``: seconds ahead in which a predicted conflict with a known motion triggers a
+      re-plan.
+    - ``replan_particles``, ``replan_iterations``: the game's budget per re-plan
+      (``particles x (iterations + 1) x N`` path evaluations, as for ``plan``).
+    - ``certify_particles``, ``certify_iterations``, ``epsilon``: each re-plan's certificate.
+    - ``attempts``: solves per re-plan (each new predicted conflict with a motion adds its
+      swept window and solves again).
+    - ``window_pad``: seconds added on both sides of a conflict's time window.
+    - ``stop_budget_factor``: after a stop to hover, the next re-plan gets this many times the
+      budget and the latency budget.
+    - ``retries_after_stop``, ``retry_interval``: re-plans tried while hovering (then the goal
+      is reported unreachable).
+    - ``wind``: mean wind speed (m/s, Dryden turbulence on top), blowing towards
+      ``wind_heading_deg`` (counter-clockwise from east).
+    - ``log_rate``: rows per second and UAV in ``flight.csv``.
+    - ``hold``: seconds simulated after arrival or after giving up, hovering.
+    """
+
+    sim_rate: float = 100.0
+    latency_budget: float = 0.3
+    horizon: float = 10.0
+    replan_particles: int = 100
+    replan_iterations: int = 100
+    certify_particles: int = 200
+    certify_iterations: int = 100
+    epsilon: float = 0.01
+    reply_start: float = 0.1
+    attempts: int = 3
+    window_pad: float = 3.0
+    stop_budget_factor: int = 4
+    retries_after_stop: int = 3
+    retry_interval: float = 2.0
+    wind: float = 0.0
+    wind_heading_deg: float = 0.0
+    log_rate: float = 20.0
+    hold: float = 2.0
+
+    def check(self) -> None:
+        """Raise ``ValueError`` (one line naming the setting) for unusable settings."""
+        def real(v: object) -> bool:
+            return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+        def integer(v: object) -> bool:
+            return isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= 1_000_000
+
+        rules = [
+            ("sim_rate", real(self.sim_rate) and 100 <= self.sim_rate <= 2000, "a number in [100, 2000] Hz"),
+            ("latency_budget", real(self.latency_budget) and 0 < self.latency_budget <= 10, "a number in (0, 10] s"),
+            ("horizon", real(self.horizon) and 0 < self.horizon <= 600, "a number in (0, 600] s"),
+            ("replan_particles", integer(self.replan_particles), "an integer in [1, 1e6]"),
+            ("replan_iterations", integer(self.replan_iterations), "an integer in [1, 1e6]"),
+            ("certify_particles", integer(self.certify_particles), "an integer in [1, 1e6]"),
+            ("certify_iterations", integer(self.certify_iterations), "an integer in [1, 1e6]"),
+            ("epsilon", real(self.epsilon) and self.epsilon >= 0, "a finite number >= 0"),
+            ("reply_start", real(self.reply_start) and 0 < self.reply_start <= 1, "a number in (0, 1]"),
+            ("attempts", integer(self.attempts) and self.attempts <= 20, "an integer in [1, 20]"),
+            ("window_pad", real(self.window_pad) and 0 <= self.window_pad <= 60, "a number in [0, 60] s"),
+            ("stop_budget_factor", integer(self.stop_budget_factor) and self.stop_budget_factor <= 100, "an integer in [1, 100]"),
+            ("retries_after_stop", integer(self.retries_after_stop) and self.retries_after_stop <= 100, "an integer in [1, 100]"),
+            ("retry_interval", real(self.retry_interval) and 0 < self.retry_interval <= 60, "a number in (0, 60] s"),
+            ("wind", real(self.wind) and 0 <= self.wind <= 30, "a number in [0, 30] m/s"),
+            ("wind_heading_deg", real(self.wind_heading_deg), "a finite number of degrees"),
+            ("log_rate", real(self.log_rate) and 1 <= self.log_rate <= self.sim_rate, "a number in [1, sim_rate] Hz"),
+            ("hold", real(self.hold) and 0 <= self.hold <= 600, "a number in [0, 600] s"),
+        ]
+        for name, ok, what in rules:
+            if not ok:
+                raise ValueError(f"flight setting {name} must be {what}, got {getattr(self, name)!r}")
+
+
+@dataclass(frozen=True)
+class ReplanRecord:
+    """One re-plan: when (``time`` = the triggering tick, ``switch_time``), why (``trigger``),
+    what it cost (``latency_s`` measured wall time of the whole re-plan, certificate included,
+    against ``latency_budget_s``; ``evaluations`` path evaluations), what came out
+    (``status``: ``"replanned"``; ``"stop, replanned"``: a synchronised stop, then a new plan
+from rest; ``"stop"``: a synchronised stop to hover, no plan yet; ``"emergency stop"``: the
+same at twice the acceleration, at once),
+    ``attempts`` solves, and the certificate (``nash_gaps`` relative per UAV, ``verdict``,
+    ``certified``: an epsilon-equilibrium)."""
+
+    time: float
+    switch_time: float
+    trigger: str
+    status: str
+    latency_s: float
+    latency_budget_s: float
+    evaluations: int
+    attempts: int
+    nash_gaps: tuple[float, ...] = ()
+    certified: bool = False
+    verdict: str = ""
+    problems: tuple[str, ...] = ()
+    windows: tuple[tuple[str, float, float], ...] = ()
+
+    @property
+    def solved(self) -> bool:
+        """A new plan was spliced in (possibly after a stop)."""
+        return self.status.endswith("replanned")
+
+    @property
+    def stopped(self) -> bool:
+        """The team came to rest (a stop to hover, before a new plan or instead of one)."""
+        return "stop" in self.status
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "time": round(self.time, 4), "switch_time": round(self.switch_time, 4),
+            "trigger": self.trigger, "status": self.status, "latency_s": self.latency_s,
+            "latency_budget_s": self.latency_budget_s,
+            "overran": self.latency_s > self.latency_budget_s, "evaluations": self.evaluations,
+            "attempts": self.attempts, "nash_gaps": list(self.nash_gaps),
+            "certified": self.certified, "verdict": self.verdict, "problems": list(self.problems),
+            "windows": [{"obstacle": w[0], "from": round(w[1], 3), "to": round(w[2], 3)} for w in self.windows],
+        }
+
+
+@dataclass
+class KnownWorld:
+    """What the planner knows of the site: the scenario's static obstacles, the appeared ones
+    it has sensed (by name), and the names it knows to be gone."""
+
+    scenario: Scenario
+    sensed: dict[str, Cylinder | Prism] = field(default_factory=dict)
+    removed: set[str] = field(default_factory=set)
+
+    def shapes(self) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
+        w = self.scenario.world
+        cyl = [c for c in w.cylinders if c.name not in self.removed]
+        prm = [p for p in w.prisms if p.name not in self.removed]
+        for name, s in self.sensed.items():
+            if name not in self.removed:
+                (cyl if isinstance(s, Cylinder) else prm).append(s)
+        return tuple(cyl), tuple(prm)
+
+
+def to_xyh(scenario: Scenario, absolute: np.ndarray) -> np.ndarray:
+    """``(..., 3)`` absolute ``(x, y, z)`` -> ``(x, y, h)`` above the ground."""
+    out = np.array(absolute, dtype=float, copy=True)
+    out[..., 2] -= scenario.world.terrain.height(out[..., 0], out[..., 1])
+    return out
+
+
+def sub_scenario(scenario: Scenario, starts_xyh: np.ndarray, cylinders: tuple[Cylinder, ...],
+                 prisms: tuple[Prism, ...]) -> Scenario:
+    """``scenario`` with new starts ``(N, 3)`` ``(x, y, h)`` and the given obstacles (goals,
+    formation, weights and settings unchanged)."""
+    team = tuple(replace(u, start=tuple(float(v) for v in s)) for u, s in zip(scenario.team, starts_xyh))
+    world = replace(scenario.world, cylinders=cylinders, prisms=prisms)
+    return replace(scenario, team=team, world=world)
+
+
+def remaining_plan(scenario: Scenario, ref: Reference, t_s: float, K: int) -> np.ndarray:
+    """``(N, K, 3)`` ``(x, y, h)``: the rest of the current plan after ``t_s``, resampled at
+    ``K`` evenly spaced times of the path being flown (the warm start of a re-plan)."""
+    piece = ref.piece_at(t_s)
+    base = piece.base if piece.kind == "stop" and piece.base is not None else piece
+    tau = piece.warp(np.array([t_s]))[0][0] if piece.kind == "stop" else t_s
+    tau = min(max(tau, base.t0), base.t1)
+    times = tau + (base.t1 - tau) * np.arange(1, K + 1) / (K + 1)
+    pos = base.state(times)[0]  # (N, K, 3)
+    return np.clip(to_xyh(scenario, pos), scenario.world.bounds.lower, scenario.world.bounds.upper)
+
+
+def check_piece(scenario: Scenario, known: KnownWorld, dyn: Dynamics, piece_ref: Reference,
+                t0: float, t1: float) -> tuple[list[str], list[tuple[str, float, float]], float]:
+    """Check the reference over ``[t0, t1]`` every :data:`CHECK_STEP_S`: clearance to the
+    known obstacles (at least half the hard clearance: the rest is left for tracking error),
+    separation above ``d_s + 2 r``, height above ground, and clearance to the known motions at
+    their true positions (the hard clearance plus the distance the UAV and the obstacle can
+    close between two samples). Returns the problems, the motions' conflict windows
+    ``(name, first, last)`` and the least clearance to anything known (m)."""
+    if t1 <= t0:
+        return [], [], math.inf
+    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+    pos = piece_ref.state(t)[0]  # (N, T, 3)
+    r = np.array([u.radius for u in scenario.team])
+    names = [u.name for u in scenario.team]
+    c = scenario.costs
+    problems: list[str] = []
+    cyl, prm = known.shapes()
+    clear = static_clearance(cyl, prm, pos, r)
+    if np.any(clear < 0.5 * c.min_clearance):
+        n, k = np.unravel_index(np.argmin(clear), clear.shape)
+        problems.append(f"{names[n]} passes {clear[n, k]:.2f} m from an obstacle at t = {t[k]:.1f} s")
+    sep = separations(pos)
+    limit = c.safe_distance + 2 * r
+    if np.any(sep <= limit[:, None]):
+        n, k = np.unravel_index(np.argmin(sep - limit[:, None]), sep.shape)
+        problems.append(f"{names[n]} comes {sep[n, k]:.2f} m from a team-mate at t = {t[k]:.1f} s")
+    h = pos[..., 2] - scenario.world.terrain.height(pos[..., 0], pos[..., 1])
+    if np.any(h < 0):
+        problems.append(f"below ground at t = {t[np.argmin(h.min(axis=0))]:.1f} s")
+    windows: list[tuple[str, float, float]] = []
+    least = float(clear.min(initial=math.inf))
+    if dyn.known_motion:
+        margin = (scenario.vehicle.max_speed + max_motion_speed(dyn)) * CHECK_STEP_S / 2
+        mc, which = moving_clearance(dyn, pos, t, r)
+        least = min(least, float(mc.min(initial=math.inf)))
+        bad = mc < c.min_clearance + margin
+        labels = motion_names(dyn)
+        for i in np.unique(which[bad]):
+            ks = np.flatnonzero((bad & (which == i)).any(axis=0))
+            windows.append((labels[i], float(t[ks[0]]), float(t[ks[-1]])))
+            problems.append(f"conflict with {labels[i]} from t = {t[ks[0]]:.1f} s to {t[ks[-1]]:.1f} s")
+    return problems, windows, least
+
+
+class Replanner:
+    """Re-solves the game in flight for one episode; holds what it needs between re-plans."""
+
+    def __init__(self, scenario: Scenario, dyn: Dynamics, config: FlyConfig, engine: Engine,
+                 rng: np.random.Generator) -> None:
+        self.scenario, self.dyn, self.config, self.engine, self.rng = scenario, dyn, config, engine, rng
+        self.known = KnownWorld(scenario)
+        self.records: list[ReplanRecord] = []
+        self._spent = 0
+
+    def solve(self, ref: Reference, t_now: float, trigger: str, scale: int = 1,
+              windows: list[tuple[str, float, float]] | None = None) -> tuple[Reference, ReplanRecord]:
+        """Re-plan at tick ``t_now``; returns the new reference and its record. ``scale``: budget
+        factor (after a stop).
+
+        First from the switch state (moving); if no plan from there passes (a sharp turn at
+        speed, no feasible path), from rest: the team stops in sync along its current paths
+        (if that stop is clear of everything known) and the new plan starts where it rests
+        (status ``"stop, replanned"``). If neither passes: the stop alone (``"stop"``, or
+        ``"emergency stop"``, :meth:`_stop`)."""
+        cfg, scenario = self.config, self.scenario
+        wall0 = time.perf_counter()
+        budget_s = cfg.latency_budget * scale
+        t_s = t_now + budget_s
+        K = scenario.solver.waypoints
+        settings = scenario.solver.with_(particles=cfg.replan_particles * scale,
+                                         iterations=cfg.replan_iterations, waypoints=K)
+        self._spent = 0
+        windows = list(windows or [])
+        warm = remaining_plan(scenario, ref, t_s, K)
+        new_ref, out, sub, problems, attempts = self._attempts(ref, ref, t_s, windows, warm, settings,
+                                                               cfg.attempts, MAX_STRETCH)
+        status = "replanned"
+        if new_ref is None and ref.piece_at(t_s).kind != "stop":
+            stopped, stop, bad = self._stop_short(ref, t_now, t_s)
+            if not bad:
+                rest = remaining_plan(scenario, stopped, stop.t1, K)
+                more, out, sub, problems2, n2 = self._attempts(stopped, stopped, stop.t1, windows, rest,
+                                                               settings, 2, math.inf)
+                attempts += n2
+                if more is not None:
+                    new_ref, status = more, "stop, replanned"
+                else:
+                    problems = problems2 or problems
+        if new_ref is None:
+            new_ref, status = self._stop(ref, t_now, t_s)
+            record = ReplanRecord(t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s,
+                                  self._spent, attempts, problems=tuple(problems[:5]), windows=tuple(windows))
+            return new_ref, self._keep(record)
+        cert = certify_plan(sub, out.plan, particles=cfg.certify_particles,
+                            iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
+                            epsilon=cfg.epsilon, settings=settings, runner=self.engine.run_swarm)
+        self._spent += sum(u.evaluations for u in cert.uavs)
+        record = ReplanRecord(
+            t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s, self._spent, attempts,
+            tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, (),
+            tuple(windows))
+        return new_ref, self._keep(record)
+
+    def _stop_short(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, Piece, bool]:
+        """The stop before a plan from rest: at the switch time within ``max_acceleration``, or,
+        if that leaves a UAV within twice the hard clearance of something known (the encoding
+        then has little room to leave), at once with twice the acceleration when that rests
+        farther. Returns the stopped reference, its stop piece and whether it breaks a check."""
+        limits = self.scenario.vehicle
+        cyl, prm = self.known.shapes()
+        r = np.array([u.radius for u in self.scenario.team])
+        best = None
+        for t0, lim in ((t_s, limits), (t_now, replace(limits, max_acceleration=2 * limits.max_acceleration))):
+            stop = stop_piece(ref, t0, lim)
+            stopped = ref.spliced(stop)
+            bad, _, _ = check_piece(self.scenario, self.known, self.dyn, stopped, t0, stop.t1 + 1.0)
+            rest = stopped.state(np.array([stop.t1]))[0]
+            room = float(static_clearance(cyl, prm, rest, r).min(initial=math.inf))
+            if best is None or (not bad and (best[2] or room > best[3])):
+                best = (stopped, stop, bool(bad), room)
+            if not bad and room >= 2 * self.scenario.costs.min_clearance:
+                break
+        return best[0], best[1], best[2]
+
+    def _attempts(self, ref: Reference, base: Reference, t0: float,
+                  windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
+                  tries: int, max_stretch: float) -> tuple[Reference | None, Any, Any, list[str], int]:
+        """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
+        known motion adds its window to ``windows``). Returns the spliced reference (``None``
+        if no plan passed), the last rounds' outcome, its scenario, the problems and the tries."""
+        scenario, cfg = self.scenario, self.config
+        state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
+        starts = to_xyh(scenario, state[0])
+        N = scenario.n_uavs
+        budget = settings.particles * (settings.iterations + 1) * N
+        cyl, prm = self.known.shapes()
+        problems: list[str] = []
+        out = sub = None
+        goals = _absolute(scenario, scenario.goals()[:, None])
+        for attempt in range(1, tries + 1):
+            sub = self._problem(starts, cyl, prm, windows)
+            model = CostModel.from_scenario(sub)
+            out = best_response_rounds(model, warm, settings, self.rng, self.engine.run_swarm,
+                                       self.engine.evaluate, budget, 0, repair=True,
+                                       reply_start=cfg.reply_start)
+            self._spent += out.evaluations
+            warm = out.plan
+            if evaluate(model, out.plan[None]).total_violation[0] > 0:
+                problems = ["no feasible plan from the switch state"]
+                continue
+            absolute = np.concatenate([state[0][:, None], _absolute(sub, out.plan), goals], axis=1)
+            try:
+                piece = timed_path(absolute, t0, scenario.vehicle, state[1], state[2],
+                                   max_stretch=max_stretch)
+            except ValueError as exc:
+                return None, out, sub, [str(exc)], attempt
+            new_ref = ref.spliced(piece)
+            problems, found, _ = check_piece(sub, self.known, self.dyn, new_ref, t0, piece.t1)
+            if not problems:
+                return new_ref, out, sub, [], attempt
+            new = [w for w in found if not any(_covers(o, w) for o in windows)]
+            if not new:
+                return None, out, sub, problems, attempt  # not a motion's window: no retry helps
+            windows.extend((n, max(t0, a - cfg.window_pad), b + cfg.window_pad) for n, a, b in new)
+        return None, out, sub, problems, tries
+
+    def _stop(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, str]:
+        """The fallback: a synchronised stop at the switch time within ``max_acceleration``; if
+        that stop (along the current paths) would come closer than the hard clearance to
+        something known, an emergency stop at once (``t_now``) with twice the acceleration, if
+        that keeps more clearance. Returns the reference and ``"stop"`` / ``"emergency stop"``."""
+        limits = self.scenario.vehicle
+        if ref.piece_at(t_s).kind == "stop":
+            return ref, "stop"
+        options = []
+        for status, t0, lim in (("stop", t_s, limits),
+                                ("emergency stop", t_now, replace(limits, max_acceleration=2 * limits.max_acceleration))):
+            piece = stop_piece(ref, t0, lim)
+            cand = ref.spliced(piece)
+            problems, _, least = check_piece(self.scenario, self.known, self.dyn, cand, t0, piece.t1 + 1.0)
+            if not problems:
+                return cand, status
+            options.append((least, cand, status))
+        _, cand, status = max(options, key=lambda o: o[0])
+        return cand, status
+
+    def _problem(self, starts: np.ndarray, cyl: tuple[Cylinder, ...], prm: tuple[Prism, ...],
+                 windows: list[tuple[str, float, float]]) -> Scenario:
+        """The scenario the team solves: known obstacles plus the swept stand-ins of the windows.
+        If a UAV's switch position is already closer than the hard clearance to an obstacle (a
+        stop short of a pop-up), the clearance of this problem is relaxed to what it has less half
+        the hard clearance, so that a path away from it exists: every leg of the encoding heads
+        within 45 degrees of the direction to the goal, so a first leg leaving an obstacle just
+        ahead must graze it."""
+        sub = sub_scenario(self.scenario, starts, cyl, prm)
+        more_c, more_p = swept_obstacles(sub, self.dyn, windows)
+        sub = sub_scenario(self.scenario, starts, cyl + more_c, prm + more_p)
+        at = _absolute(sub, starts[:, None])
+        r = np.array([u.radius for u in sub.team])
+        have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
+        if have < sub.costs.min_clearance:
+            relaxed = max(0.0, have - 0.5 * self.scenario.costs.min_clearance)
+            sub = replace(sub, costs=replace(sub.costs, min_clearance=relaxed))
+        return sub
+
+    def _keep(self, record: ReplanRecord) -> ReplanRecord:
+        self.records.append(record)
+        return record
+
+
+def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, float, float]]
+                    ) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
+    """The swept stand-ins (:meth:`Dynamics.swept`) of the conflict ``windows`` ``(name, from,
+    to)``, less any that holds a UAV's start or goal in ``scenario`` within the hard clearance:
+    the UAV is there at another time than the motion (the in-time check judges it), and a
+    stand-in around an end would leave no plan at all."""
+    cyl: list[Cylinder] = []
+    prm: list[Prism] = []
+    for name, a, b in windows:
+        c2, p2 = dyn.swept(a, b, {name})
+        cyl += c2
+        prm += p2
+    ends = np.concatenate([_absolute(scenario, scenario.starts()), _absolute(scenario, scenario.goals())])
+    r = np.tile(np.array([u.radius for u in scenario.team]), 2)
+    need = scenario.costs.min_clearance
+    keep_c = tuple(c for c in cyl if np.all(static_clearance((c,), (), ends[:, None], r) >= need))
+    keep_p = tuple(p for p in prm if np.all(static_clearance((), (p,), ends[:, None], r) >= need))
+    return keep_c, keep_p
+
+
+def _absolute(scenario: Scenario, xyh: np.ndarray) -> np.ndarray:
+    out = np.array(xyh, dtype=float, copy=True)
+    out[..., 2] = scenario.world.terrain.absolute(out[..., 0], out[..., 1], out[..., 2])
+    return out
+
+
+def _covers(a: tuple[str, float, float], b: tuple[str, float, float]) -> bool:
+    return a[0] == b[0] and a[1] <= b[1] and b[2] <= a[2]
+
+
+def offline_plan(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray, config: FlyConfig,
+                 solve: Any) -> tuple[np.ndarray, Piece, list[tuple[str, float, float]], list[str]]:
+    """Make a plan ``(N, K, 3)`` sound against the known motions before take-off: time it, check
+    it in time against the motions, and while it conflicts re-plan (``solve(windows) -> (N, K,
+    3)``) with the swept volumes of the conflict windows. Returns the plan, its timed piece,
+    the windows used and the problems left (empty: sound)."""
+    known = KnownWorld(scenario)
+    windows: list[tuple[str, float, float]] = []
+    problems: list[str] = []
+    for _ in range(config.attempts + 1):
+        start = _absolute(scenario, scenario.starts()[:, None])
+        goal = _absolute(scenario, scenario.goals()[:, None])
+        piece = timed_path(np.concatenate([start, _absolute(scenario, waypoints), goal], axis=1),
+                           0.0, scenario.vehicle)
+        problems, found, _ = check_piece(scenario, known, dyn, Reference((piece,)), 0.0, piece.t1)
+        if not problems:
+            return waypoints, piece, windows, []
+        new = [w for w in found if not any(_covers(o, w) for o in windows)]
+        if not new:
+            break
+        windows.extend((n, max(0.0, a - config.window_pad), b + config.window_pad) for n, a, b in new)
+        waypoints = solve(windows)
+    return waypoints, piece, windows, problems

@@ -1,0 +1,159 @@
+"""The changing site's tables (``[[moving]]``, ``[[jibs]]``, ``[[events]]``, ``[sensing]``), in a
+scenario file or an events file (``staghunt fly --events FILE``): checked tables in,
+:class:`~staghunt.world.dynamic.Dynamics` out, with the checks that need the site."""
+
+from __future__ import annotations
+
+import math
+import os
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from staghunt.scenario.errors import ScenarioError, fmt
+from staghunt.scenario.shapes import check_polygon, make_prism, nofly_zone
+from staghunt.world import Cylinder, World
+from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, Sensing, SlewingJib
+
+if TYPE_CHECKING:
+    from staghunt.scenario.model import Scenario
+    from staghunt.scenario.schema import EventsFile, JibTable, ScenarioFile
+
+
+def _inside(world: World, x: float, y: float) -> bool:
+    return world.bounds.contains_xy(x, y)
+
+
+def _jib(t: "JibTable", i: int, world: World) -> SlewingJib:
+    key = f"jibs[{i}]"
+    px, py = t.pivot
+    if not _inside(world, px, py):
+        raise ScenarioError(f"pivot {tuple(t.pivot)} lies outside the site", f"{key}.pivot")
+    g = float(world.terrain.height(np.array([px]), np.array([py]))[0])
+    jib = SlewingJib(t.name, (px, py), t.length, t.width, g + t.base, g + t.height, t.angle_from,
+                     t.angle_to, t.rate, t.counter, t.start_time, t.repeat, (t.base, t.height))
+    sweep = abs(t.angle_to - t.angle_from)
+    angles = np.linspace(0.0, sweep, max(2, math.ceil(sweep / 2.0) + 1)) / max(t.rate, 1e-9) + t.start_time
+    corners = jib.polygons(angles).reshape(-1, 2)
+    b = world.bounds
+    out = (corners[:, 0] < b.xmin) | (corners[:, 0] > b.xmax) | (corners[:, 1] < b.ymin) | (corners[:, 1] > b.ymax)
+    if out.any():
+        x, y = corners[np.argmax(out)]
+        raise ScenarioError(f"the jib leaves the site while it slews (a corner reaches ({fmt(float(x))}, "
+                            f"{fmt(float(y))}))", key)
+    return jib
+
+
+def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: str = "",
+                         first_popup: int = 1) -> tuple[Dynamics, bool]:
+    """The :class:`Dynamics` of the checked tables of ``f`` in ``world``, and whether ``f``
+    gave a ``[sensing]`` table. ``prefix`` goes before key paths in errors; appeared obstacles
+    without a name are called ``pop-up <i>`` from ``first_popup`` on."""
+    moving = []
+    for i, m in enumerate(f.moving):
+        for k, (x, y) in enumerate(m.path):
+            if not _inside(world, x, y):
+                raise ScenarioError(f"({fmt(x)}, {fmt(y)}) lies outside the site: a moving obstacle "
+                                    "must stay in the site", f"{prefix}moving[{i}].path[{k}]")
+        moving.append(MovingCylinder(m.name, m.radius, tuple((float(x), float(y)) for x, y in m.path),
+                                     m.speed, m.start_time, m.repeat))
+    jibs = [_jib(t, i, world) for i, t in enumerate(f.jibs)]
+    events = []
+    popup = first_popup
+    for i, e in enumerate(f.events):
+        key = f"{prefix}events[{i}]"
+        if e.kind == "disappear":
+            assert e.name is not None
+            events.append(Event(e.time, "disappear", e.name))
+            continue
+        name = e.name
+        if name is None:
+            name, popup = f"pop-up {popup}", popup + 1
+        shape: Any
+        if e.polygon is None:
+            assert e.x is not None and e.y is not None and e.radius is not None
+            if not _inside(world, e.x, e.y):
+                raise ScenarioError(f"({fmt(e.x)}, {fmt(e.y)}) lies outside the site", f"{key}.x")
+            shape = Cylinder(e.x, e.y, e.radius, name)
+        else:
+            poly = check_polygon(e.polygon, f"{key}.polygon")
+            shape = (nofly_zone(poly, name) if e.height is None
+                     else make_prism(poly, e.base or 0.0, e.height, world.terrain, name))
+        events.append(Event(e.time, "appear", name, shape))
+    names = [m.name for m in moving] + [j.name for j in jibs] + [e.name for e in events if e.kind == "appear"]
+    seen: set[str] = set()
+    for n in names:
+        if n in seen:
+            raise ScenarioError(f"the name {n!r} is given to two changing obstacles", f"{prefix}events")
+        seen.add(n)
+    sensing = Sensing(**f.sensing.model_dump()) if f.sensing is not None else Sensing()
+    dyn = Dynamics(tuple(moving), tuple(jibs), tuple(sorted(events, key=lambda e: e.time)), sensing)
+    return dyn, f.sensing is not None
+
+
+def check_disappearing(dyn: Dynamics, world: World, key: str = "events") -> None:
+    """Every ``disappear`` event names an obstacle of the site or of the changing world."""
+    known = {c.name for c in world.cylinders} | {p.name for p in world.prisms}
+    known |= {m.name for m in dyn.moving} | {j.name for j in dyn.jibs}
+    known |= {e.name for e in dyn.events if e.kind == "appear"}
+    for i, e in enumerate(dyn.events):
+        if e.kind == "disappear" and e.name not in known:
+            raise ScenarioError(f"no obstacle called {e.name!r} to disappear", f"{key}[{i}].name")
+
+
+def load_events(path: str | os.PathLike[str], scenario: "Scenario") -> Dynamics:
+    """The scenario's changing world plus an events file's (read once, checked whole before
+    anything runs); raises :class:`ScenarioError` naming the file and the entry at fault."""
+    from staghunt.inputs import check_magnitudes, parse_toml, read_text
+    from staghunt.scenario.schema import EventsFile
+    from staghunt.scenario.validation import plain, validate
+
+    source = os.fspath(path)
+    try:
+        data = plain(parse_toml(read_text(source, "events file (TOML)"), source))
+        check_magnitudes(data)
+        f = validate(data, EventsFile)
+        own = scenario.dynamics
+        first = 1 + sum(1 for e in own.events if e.kind == "appear")
+        extra, sensing_given = dynamics_from_tables(f, scenario.world, first_popup=first)
+        dyn = own.merged(extra, sensing_given)
+        check_disappearing(dyn, scenario.world)
+        names = [m.name for m in dyn.moving] + [j.name for j in dyn.jibs]
+        names += [e.name for e in dyn.events if e.kind == "appear"]
+        if len(names) != len(set(names)):
+            raise ScenarioError("a changing obstacle of the events file has the name of one of the scenario's")
+    except ScenarioError as exc:
+        raise ScenarioError(exc.detail, exc.key, source) from None
+    except ValueError as exc:
+        raise ScenarioError(str(exc), None, source) from None
+    return dyn
+
+
+def dynamics_to_dict(dyn: Dynamics) -> dict[str, Any]:
+    """The changing world in the scenario file's layout (only the tables it has)."""
+    out: dict[str, Any] = {}
+    if dyn.moving:
+        out["moving"] = [{"name": m.name, "radius": m.radius, "path": [list(v) for v in m.path],
+                          "speed": m.speed, "start_time": m.start_time, "repeat": m.repeat}
+                         for m in dyn.moving]
+    if dyn.jibs:
+        out["jibs"] = [{"name": j.name, "pivot": list(j.pivot), "length": j.length, "counter": j.counter,
+                        "width": j.width, "base": (j.agl or (0.0, 0.0))[0], "height": (j.agl or (0.0, 0.0))[1],
+                        "angle_from": j.angle_from, "angle_to": j.angle_to, "rate": j.rate,
+                        "start_time": j.start_time, "repeat": j.repeat} for j in dyn.jibs]
+    if dyn.events:
+        rows = []
+        for e in dyn.events:
+            row: dict[str, Any] = {"time": e.time, "kind": e.kind, "name": e.name}
+            if isinstance(e.shape, Cylinder):
+                row.update(x=e.shape.x, y=e.shape.y, radius=e.shape.radius)
+            elif e.shape is not None:
+                row["polygon"] = [list(v) for v in e.shape.polygon]
+                if e.shape.agl is not None:
+                    row.update(base=e.shape.agl[0], height=e.shape.agl[1])
+            rows.append(row)
+        out["events"] = rows
+    s = dyn.sensing
+    out["sensing"] = {"range": s.range, "rate": s.rate, "position_noise": s.position_noise,
+                      "velocity_noise": s.velocity_noise}
+    return out

@@ -1,0 +1,217 @@
+"""A site that changes: obstacles with a known motion, obstacles that appear or disappear, and
+what the team senses. Knows nothing of UAVs' plans or solvers.
+
+Times are seconds after take-off; positions are in the site frame (m). Two known motions:
+
+- :class:`MovingCylinder` (a truck, a load on a hook): a vertical cylinder, infinitely tall
+  like the static ones, whose axis moves along a polyline at a constant speed from
+  ``start_time`` on; it waits at the first vertex before, and at the end either stops
+  (``repeat = "stop"``) or runs the polyline back and forth (``"reverse"``).
+- :class:`SlewingJib` (a crane jib): a box ``length`` long (plus ``counter`` behind the pivot)
+  and ``width`` wide between two absolute heights, turning about a vertical axis through its
+  pivot from ``angle_from`` to ``angle_to`` (degrees counter-clockwise from east) at ``rate``
+  deg/s from ``start_time`` on, then holding (``"stop"``) or slewing back and forth (``"reverse"``).
+
+:class:`Event`\\ s change the world at a given time (``appear``, ``disappear``); the planner
+learns of an appeared obstacle only when a UAV comes within the :class:`Sensing` range of it.
+
+Sound offline treatment of known motions (docs/model.md, "A site that changes"): plans are
+checked *in time* against the true positions (:func:`staghunt.flight.safety.moving_clearance`), and a conflict is
+removed by re-planning with the obstacle's **swept volume over the conflict's time window**
+(:meth:`Dynamics.swept`) as static obstacles.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Literal
+
+import numpy as np
+
+from staghunt.world.obstacles import Cylinder, Prism
+
+Repeat = Literal["stop", "reverse"]
+
+
+def _bounce(s: np.ndarray, length: float, repeat: Repeat) -> np.ndarray:
+    """Arc length ``s >= 0`` folded into ``[0, length]``: clipped, or back and forth."""
+    if repeat == "stop" or length <= 0:
+        return np.clip(s, 0.0, length)
+    period = np.mod(s, 2.0 * length)
+    return np.where(period <= length, period, 2.0 * length - period)
+
+
+@dataclass(frozen=True)
+class MovingCylinder:
+    """A vertical cylinder of ``radius`` (m) whose axis moves along ``path`` (``V >= 2`` vertices
+    ``(x, y)``) at ``speed`` (m/s) from ``start_time`` (s)."""
+
+    name: str
+    radius: float
+    path: tuple[tuple[float, float], ...]
+    speed: float
+    start_time: float = 0.0
+    repeat: Repeat = "stop"
+
+    @property
+    def length(self) -> float:
+        v = np.asarray(self.path, dtype=float)
+        return float(np.linalg.norm(np.diff(v, axis=0), axis=1).sum())
+
+    def xy(self, t: np.ndarray) -> np.ndarray:
+        """``(T, 2)`` axis positions at times ``t`` ``(T,)``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        v = np.asarray(self.path, dtype=float)
+        seg = np.linalg.norm(np.diff(v, axis=0), axis=1)
+        cum = np.concatenate([[0.0], np.cumsum(seg)])
+        s = _bounce(np.maximum(t - self.start_time, 0.0) * self.speed, float(cum[-1]), self.repeat)
+        return np.column_stack([np.interp(s, cum, v[:, 0]), np.interp(s, cum, v[:, 1])])
+
+    def sub_path(self, t0: float, t1: float, step: float) -> np.ndarray:
+        """``(S, 2)`` axis positions every ``<= step`` metres of travel over ``[t0, t1]``."""
+        travel = max(0.0, t1 - t0) * self.speed
+        n = max(1, math.ceil(travel / max(step, 1e-6)))
+        return self.xy(np.linspace(t0, t1, n + 1))
+
+
+@dataclass(frozen=True)
+class SlewingJib:
+    """A crane jib: a box from ``counter`` m behind the pivot to ``length`` m ahead of it,
+    ``width`` m wide, between absolute heights ``base < top`` (site ``z``), turning about the
+    vertical axis through ``pivot`` from ``angle_from`` to ``angle_to`` (deg, counter-clockwise
+    from east) at ``rate`` (deg/s) from ``start_time`` (s)."""
+
+    name: str
+    pivot: tuple[float, float]
+    length: float
+    width: float
+    base: float
+    top: float
+    angle_from: float
+    angle_to: float
+    rate: float
+    counter: float = 0.0
+    start_time: float = 0.0
+    repeat: Repeat = "stop"
+    agl: tuple[float, float] | None = None
+    """``(base, height)`` above the ground at the pivot as the scenario gave them."""
+
+    def angle(self, t: np.ndarray) -> np.ndarray:
+        """``(T,)`` jib heading (radians) at times ``t``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        sweep = abs(self.angle_to - self.angle_from)
+        turned = _bounce(np.maximum(t - self.start_time, 0.0) * self.rate, sweep, self.repeat)
+        sign = 1.0 if self.angle_to >= self.angle_from else -1.0
+        return np.radians(self.angle_from + sign * turned)
+
+    def polygons(self, t: np.ndarray, grow: float = 0.0) -> np.ndarray:
+        """``(T, 4, 2)`` footprints at times ``t`` (counter-clockwise), each side pushed out by ``grow`` m."""
+        a = self.angle(t)
+        u = np.stack([np.cos(a), np.sin(a)], axis=-1)  # (T, 2) along the jib
+        w = np.stack([-np.sin(a), np.cos(a)], axis=-1)  # (T, 2) across
+        p = np.asarray(self.pivot, dtype=float)
+        back, ahead, half = self.counter + grow, self.length + grow, 0.5 * self.width + grow
+        corners = [(-back, -half), (ahead, -half), (ahead, half), (-back, half)]
+        return np.stack([p + c[0] * u + c[1] * w for c in corners], axis=1)
+
+    @property
+    def tip_speed(self) -> float:
+        """Largest horizontal speed of any point of the jib (m/s)."""
+        far = math.hypot(max(self.length, self.counter), 0.5 * self.width)
+        return math.radians(self.rate) * far
+
+
+@dataclass(frozen=True)
+class Event:
+    """A change of the world at ``time`` (s): ``appear`` adds ``shape`` (a :class:`Cylinder`
+    or :class:`Prism`), ``disappear`` removes the obstacle called ``name`` (static, moving or
+    appeared)."""
+
+    time: float
+    kind: Literal["appear", "disappear"]
+    name: str
+    shape: Cylinder | Prism | None = None
+
+
+@dataclass(frozen=True)
+class Sensing:
+    """What the planner learns in flight. ``range``: an appeared obstacle is sensed once a
+    UAV's measured position is within this horizontal distance of it (m; ``inf``: at once).
+    ``rate``: state feedback and planner ticks per second (Hz, >= 10). ``position_noise``,
+    ``velocity_noise``: standard deviation of the fed-back position (m) and velocity (m/s)."""
+
+    range: float = 40.0
+    rate: float = 10.0
+    position_noise: float = 0.0
+    velocity_noise: float = 0.0
+
+
+@dataclass(frozen=True)
+class Dynamics:
+    """Everything about the site that changes with time (empty by default)."""
+
+    moving: tuple[MovingCylinder, ...] = ()
+    jibs: tuple[SlewingJib, ...] = ()
+    events: tuple[Event, ...] = ()
+    sensing: Sensing = field(default_factory=Sensing)
+
+    @property
+    def empty(self) -> bool:
+        return not (self.moving or self.jibs or self.events)
+
+    @property
+    def known_motion(self) -> bool:
+        return bool(self.moving or self.jibs)
+
+    def merged(self, other: "Dynamics", sensing_given: bool) -> "Dynamics":
+        """This world plus ``other``'s motions and events (an events file); ``other``'s sensing
+        replaces this one's if ``sensing_given``."""
+        events = tuple(sorted(self.events + other.events, key=lambda e: e.time))
+        return Dynamics(self.moving + other.moving, self.jibs + other.jibs, events,
+                        other.sensing if sensing_given else self.sensing)
+
+    def removed(self, t: float) -> set[str]:
+        """Names of the obstacles that have disappeared by time ``t``."""
+        return {e.name for e in self.events if e.kind == "disappear" and e.time <= t}
+
+    def swept(self, t0: float, t1: float, only: set[str] | None = None
+              ) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
+        """Static stand-ins covering where the known motions (or those named in ``only``) can be
+        during ``[t0, t1]``: for a moving cylinder, cylinders of radius ``sqrt(R^2 + (s/2)^2)``
+        centred every ``s = R`` m along its track (they cover the swept capsule); for a jib, its
+        box every ``step`` of heading, widened by the largest chord between two steps."""
+        gone = self.removed(t1)
+        cyl: list[Cylinder] = []
+        for m in self.moving:
+            if (only is not None and m.name not in only) or m.name in gone:
+                continue
+            pts = m.sub_path(t0, t1, m.radius)
+            step = float(np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1), initial=0.0))
+            r = math.hypot(m.radius, 0.5 * step)
+            cyl.extend(Cylinder(float(x), float(y), r, f"{m.name} (swept)") for x, y in pts)
+        prisms: list[Prism] = []
+        for j in self.jibs:
+            if (only is not None and j.name not in only) or j.name in gone:
+                continue
+            a0, a1 = j.angle(np.array([t0, t1]))
+            turn = abs(j.rate) * max(0.0, t1 - t0)
+            n = max(1, math.ceil(min(turn, 360.0) / 5.0))
+            times = np.linspace(t0, t1, n + 1)
+            angles = j.angle(times)
+            gap = float(np.max(np.abs(np.diff(angles)), initial=0.0))
+            grow = math.hypot(max(j.length, j.counter), 0.5 * j.width) * 2.0 * math.sin(0.5 * gap)
+            for k, poly in enumerate(j.polygons(times, grow)):
+                prisms.append(Prism(tuple(map(tuple, poly.tolist())), j.base, j.top,
+                                    f"{j.name} (swept {k})", "box"))
+        return tuple(cyl), tuple(prisms)
+
+
+def motion_names(dyn: Dynamics) -> list[str]:
+    """Names of the known motions in the order of :func:`moving_clearance`'s indices."""
+    return [m.name for m in dyn.moving] + [j.name for j in dyn.jibs]
+
+
+def max_motion_speed(dyn: Dynamics) -> float:
+    """Fastest horizontal speed of any known motion (m/s; 0 without)."""
+    return max([m.speed for m in dyn.moving] + [j.tip_speed for j in dyn.jibs], default=0.0)

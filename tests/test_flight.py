@@ -1,0 +1,361 @@
+"""The closed loop: references and splices, the changing world, simulated flights with
+re-planning, the events file and its bad inputs, the flight files."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from staghunt import load_scenario
+from staghunt.flight import FlightStatus, FlyConfig, fly
+from staghunt.flight.reference import Reference, stop_piece, timed_path
+from staghunt.flight.safety import moving_clearance, point_polygon_distance, separations
+from staghunt.flight.vehicles import DrydenGust
+from staghunt.scenario import ScenarioError
+from staghunt.scenario.dynamics import load_events
+from staghunt.task import VehicleLimits
+from staghunt.world import Cylinder
+from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib
+
+pytest.importorskip("rotorpy")
+
+DATA = Path(__file__).parent / "data"
+SMALL = str(DATA / "flight_small.toml")
+LIMITS = VehicleLimits()
+
+
+def run_cli(argv: list[str]) -> int:
+    from staghunt import cli
+
+    return cli.main(argv)
+
+
+# ------------------------------------------------------------------------------------------------
+# References: timing, splices, stops
+# ------------------------------------------------------------------------------------------------
+
+
+def _team_points() -> np.ndarray:
+    a = np.array([[0, 0, 10], [10, 4, 10], [22, 0, 12], [40, 8, 10]], dtype=float)
+    return np.stack([a, a + [0, 6, 0]])  # (2, 4, 3)
+
+
+def test_timed_path_within_limits_near_polyline_and_at_rest_at_both_ends():
+    piece = timed_path(_team_points(), 0.0, LIMITS)
+    t = np.linspace(piece.t0, piece.t1, 4000)
+    s = Reference((piece,)).state(t)
+    assert np.linalg.norm(s[1], axis=-1).max() <= LIMITS.max_speed
+    assert np.linalg.norm(s[2], axis=-1).max() <= LIMITS.max_acceleration * 1.01
+    assert np.allclose(s[1][:, [0, -1]], 0.0, atol=1e-9)
+    assert np.allclose(s[0][:, -1], _team_points()[:, -1])
+    # every sample within 0.3 m of the planned polyline
+    p = _team_points()[0]
+    a, b = p[:-1], p[1:]
+    q = s[0][0][:, None]
+    u = np.clip(((q - a) * (b - a)).sum(-1) / ((b - a) ** 2).sum(-1), 0, 1)
+    dev = np.linalg.norm(q - (a + u[..., None] * (b - a)), axis=-1).min(axis=1)
+    assert dev.max() < 0.3
+    # the team shares its waypoint times: every planned point is reached at the same knot
+    at = Reference((piece,)).state(piece.knots)[0]
+    assert np.allclose(at, piece.points, atol=1e-6)
+
+
+def test_splice_is_continuous_in_position_velocity_and_acceleration():
+    ref = Reference((timed_path(_team_points(), 0.0, LIMITS),))
+    ts = 3.7
+    s = ref.state(np.array([ts]))[:, :, 0]
+    rest = _team_points()[:, 2:] + [0, -3, 1]
+    new = ref.spliced(timed_path(np.concatenate([s[0][:, None], rest], axis=1), ts, LIMITS, s[1], s[2]))
+    e = 1e-7
+    before, after = new.state(np.array([ts - e, ts + e]))[:3].transpose(2, 0, 1, 3)
+    assert np.abs(after - before).max() < 1e-4
+    assert len(new.pieces) == 2 and new.pieces[1].t0 == ts
+
+
+def test_stop_is_continuous_synchronised_and_comes_to_rest():
+    ref = Reference((timed_path(_team_points(), 0.0, LIMITS),))
+    ts = 4.0
+    stop = stop_piece(ref, ts, LIMITS)
+    new = ref.spliced(stop)
+    e = 1e-7
+    before, after = new.state(np.array([ts - e, ts + e]))[:3].transpose(2, 0, 1, 3)
+    assert np.abs(after - before).max() < 1e-4
+    t = np.linspace(ts, ts + stop.duration + 2, 500)
+    s = new.state(t)
+    assert np.linalg.norm(s[2], axis=-1).max() <= LIMITS.max_acceleration * 1.001
+    assert np.allclose(s[1][:, -1], 0.0)
+    # synchronised: both UAVs are where the original plan had them at one common instant
+    tau = stop.warp(t)[0]
+    assert np.allclose(s[0], ref.state(tau)[0], atol=1e-9)
+
+
+# ------------------------------------------------------------------------------------------------
+# The changing world
+# ------------------------------------------------------------------------------------------------
+
+
+def test_moving_cylinder_and_jib_kinematics():
+    m = MovingCylinder("truck", 2.0, ((0.0, 0.0), (10.0, 0.0), (10.0, 10.0)), 2.0, start_time=1.0,
+                       repeat="reverse")
+    xy = m.xy(np.array([0.0, 1.0, 6.0, 11.0, 16.0, 21.0]))
+    assert np.allclose(xy, [[0, 0], [0, 0], [10, 0], [10, 10], [10, 0], [0, 0]])
+    j = SlewingJib("jib", (0.0, 0.0), 10.0, 2.0, 5.0, 7.0, 0.0, 90.0, 10.0)
+    assert np.allclose(np.degrees(j.angle(np.array([0.0, 4.5, 9.0, 20.0]))), [0, 45, 90, 90])
+    poly = j.polygons(np.array([9.0]))[0]
+    assert np.allclose(poly.min(axis=0), [-1, 0], atol=1e-9) and np.allclose(poly.max(axis=0), [1, 10])
+
+
+def test_swept_stand_ins_cover_the_motion_over_the_window():
+    m = MovingCylinder("truck", 3.0, ((0.0, 0.0), (40.0, 10.0)), 4.0)
+    j = SlewingJib("jib", (50.0, 50.0), 20.0, 2.0, 0.0, 30.0, 0.0, 120.0, 8.0, counter=4.0)
+    dyn = Dynamics(moving=(m,), jibs=(j,))
+    cyl, prm = dyn.swept(2.0, 7.0)
+    t = np.linspace(2.0, 7.0, 400)
+    centres = m.xy(t)
+    on_rim = centres[:, None] + 3.0 * np.stack([np.cos(np.linspace(0, 2 * np.pi, 16)),
+                                                np.sin(np.linspace(0, 2 * np.pi, 16))], -1)
+    pts = on_rim.reshape(-1, 2)
+    inside = np.zeros(len(pts), bool)
+    for c in cyl:
+        inside |= np.hypot(pts[:, 0] - c.x, pts[:, 1] - c.y) <= c.radius + 1e-9
+    assert inside.all()
+    corners = j.polygons(t).reshape(-1, 2)
+    hit = np.zeros(len(corners), bool)
+    for p in prm:
+        v = np.asarray(p.polygon)
+        edges = np.concatenate([v, np.roll(v, -1, 0)], 1)
+        hit |= point_polygon_distance(corners[:, 0], corners[:, 1], edges) <= 1e-9
+    assert hit.all()
+
+
+def test_moving_clearance_at_the_same_instant():
+    m = MovingCylinder("truck", 2.0, ((0.0, 0.0), (100.0, 0.0)), 10.0)
+    pos = np.array([[[50.0, 5.0, 10.0], [50.0, 5.0, 10.0]]])  # (1, 2, 3)
+    c, which = moving_clearance(Dynamics(moving=(m,)), pos, np.array([0.0, 5.0]), np.array([1.0]))
+    assert np.allclose(c, [[math.hypot(50, 5) - 3, 2.0]])
+    assert which.tolist() == [[0, 0]]
+    assert np.allclose(separations(np.array([[[0, 0, 0.0]], [[3, 4, 0.0]]])), [[5.0], [5.0]])
+
+
+def test_dryden_gust_statistics_and_seed():
+    def run(seed: int) -> np.ndarray:
+        g = DrydenGust(np.array([5.0, 0.0, 0.0]), 12.0, 0.01, np.random.default_rng(seed))
+        return np.array([g.step() for _ in range(60000)]), g.sigma
+
+    w, sigma = run(3)
+    assert np.array_equal(w, run(3)[0])
+    # MIL-F-8785C low altitude: sigma_w = 0.1 W, sigma_u = sigma_w / (0.177 + 0.000823 h_ft)^0.4
+    assert sigma[2] == pytest.approx(0.5)
+    assert sigma[0] == pytest.approx(0.5 / (0.177 + 0.000823 * 12.0 * 3.281) ** 0.4)
+    assert abs(w[:, 0].mean() - 5.0) < 0.3
+    assert np.all(np.abs(w.std(axis=0) / sigma - 1.0) < 0.35)
+    calm = DrydenGust(np.zeros(3), 12.0, 0.01, np.random.default_rng(0))
+    assert np.array_equal(calm.step(), np.zeros(3))
+
+
+# ------------------------------------------------------------------------------------------------
+# Events files: the required form, richer kinds, and bad input
+# ------------------------------------------------------------------------------------------------
+
+POPUP = """
+[[events]]
+time = 6.0          # s after take-off
+kind = "appear"
+x = 52.0            # site frame, m
+y = 20.0
+radius = 3.0        # a cylinder through the whole height band
+"""
+
+
+def test_events_file_minimal_form_and_richer_kinds(tmp_path):
+    f = tmp_path / "ev.toml"
+    f.write_text(POPUP + """
+[[events]]
+time = 9.0
+kind = "appear"
+name = "skip"
+polygon = [[60, 60], [66, 60], [66, 64], [60, 64]]
+height = 12.0
+
+[[events]]
+time = 20.0
+kind = "disappear"
+name = "crane 1"
+
+[[moving]]
+name = "truck"
+radius = 2.5
+path = [[10, 90], [90, 90], [90, 10]]
+speed = 3.0
+repeat = "reverse"
+
+[[jibs]]
+name = "jib"
+pivot = [40, 48]
+length = 25
+width = 2
+base = 22
+height = 25
+angle_from = 180
+angle_to = 270
+rate = 6
+
+[sensing]
+range = 25.0
+position_noise = 0.05
+""", encoding="utf-8")
+    dyn = load_events(f, load_scenario("scenario2"))
+    assert [e.name for e in dyn.events] == ["pop-up 1", "skip", "crane 1"]
+    assert isinstance(dyn.events[0].shape, Cylinder) and dyn.events[0].shape.radius == 3.0
+    assert dyn.events[1].shape.top == 12.0
+    assert dyn.moving[0].repeat == "reverse" and dyn.jibs[0].top == 25.0
+    assert dyn.sensing.range == 25.0 and dyn.sensing.position_noise == 0.05
+
+
+def test_events_schema_validates_the_minimal_form():
+    jsonschema = pytest.importorskip("jsonschema")
+    import tomllib
+
+    from staghunt.scenario.schema import EventsFile, json_schema
+
+    schema = json_schema(EventsFile)
+    jsonschema.validate(tomllib.loads(POPUP), schema)
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({"events": [{"time": -1, "kind": "appear", "x": 1, "y": 1, "radius": 1}]}, schema)
+
+
+BAD_EVENTS = [
+    ("[[events]]\ntime = 1.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\ncolour = 'red'\n", "colour"),
+    ("[[events]]\ntime = -1.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\n", "time"),
+    ("[[events]]\ntime = nan\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\n", "time"),
+    ("[[events]]\ntime = 1.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = -2.0\n", "radius"),
+    ("[[events]]\ntime = 1.0\nkind = 'explode'\nx = 20.0\ny = 20.0\nradius = 2.0\n", "kind"),
+    ("[[events]]\ntime = 1.0\nkind = 'appear'\nx = 20.0\nradius = 2.0\n", "events[0].y"),
+    ("[[events]]\ntime = 1.0\nkind = 'disappear'\nname = 'nothing'\n", "nothing"),
+    ("[[moving]]\nname = 't'\nradius = 2.0\npath = [[10, 10], [120, 10]]\nspeed = 2.0\n", "outside the site"),
+    ("[[jibs]]\nname = 'j'\npivot = [50, 5]\nlength = 30\nwidth = 2\nbase = 2\nheight = 20\n"
+     "angle_from = 0\nangle_to = 90\nrate = 5\n", "leaves the site"),
+    ("[[events]]\ntime = 0.0\nkind = 'appear'\nx = 5.0\ny = 15.0\nradius = 2.0\n", "on top of UAV1"),
+    ("events = 3\n", "events"),
+]
+
+
+@pytest.mark.parametrize("text,needle", BAD_EVENTS)
+def test_bad_events_exit_2_with_one_line_before_any_simulation(tmp_path, capsys, text, needle):
+    f = tmp_path / "ev.toml"
+    f.write_text(text, encoding="utf-8")
+    out = tmp_path / "out"
+    code = run_cli(["fly", SMALL, "--events", str(f), "--out", str(out), "--no-plots"])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert len(err.splitlines()) == 1 and needle in err and "Traceback" not in err
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# Flights
+# ------------------------------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def calm():
+    """The small site flown without events."""
+    return fly(SMALL, seed=0)
+
+
+def test_calm_flight_tracks_and_arrives(calm):
+    assert calm.status is FlightStatus.ARRIVED and not calm.replans
+    assert calm.tracking_rms.max() <= 0.3
+    assert np.all(calm.min_separation > calm.separation_limit)
+    assert np.all(calm.min_clearance > calm.required_clearance * 0.5)
+    assert np.all(np.abs(calm.arrival - calm.baseline_arrival) < 1.5)
+    dt = np.diff(calm.times)
+    assert np.allclose(dt, 0.01)  # 100 Hz
+
+
+def test_popup_on_the_next_leg_triggers_a_replan_and_the_flight_stays_clear(calm):
+    t_event = 4.0
+    ahead = calm.reference[0][np.searchsorted(calm.times, t_event + 2.5)]
+    popup = Cylinder(float(ahead[0]), float(ahead[1]), 2.0, "popup")
+    dyn = Dynamics(events=(Event(t_event, "appear", "popup", popup),))
+    r = fly(SMALL, events=dyn, seed=0)
+    assert r.replans and r.replans[0].trigger.startswith("sensed popup")
+    assert r.replans[0].switch_time == pytest.approx(r.replans[0].time + 0.3)
+    solved = [x for x in r.replans if x.solved]
+    assert solved and solved[0].nash_gaps and solved[0].evaluations > 0
+    # the true clearance to the pop-up after it appeared, in the simulated flight
+    after = r.times >= t_event
+    d = np.hypot(r.actual[:, after, 0] - popup.x, r.actual[:, after, 1] - popup.y) - popup.radius - 0.5
+    assert d.min() > 0
+    assert r.min_clearance.min() > 0 and r.status is FlightStatus.ARRIVED
+
+
+def test_slewing_jib_that_would_cross_the_plan_makes_no_contact():
+    jib = SlewingJib("jib", (30.0, 2.0), 25.0, 2.0, 0.0, 40.0, 0.0, 130.0, 12.0)
+    r = fly(SMALL, events=Dynamics(jibs=(jib,)), seed=0)
+    naive = fly(SMALL, seed=0)
+    crossing = moving_clearance(Dynamics(jibs=(jib,)), naive.reference, naive.times,
+                                np.array([0.5, 0.5]))[0]
+    assert crossing.min() < 0  # the plan made without the jib would hit it
+    assert r.min_clearance.min() > 0
+    assert r.status in (FlightStatus.ARRIVED, FlightStatus.STOPPED)
+
+
+def test_unreachable_goal_stops_in_sync_and_exits_3(tmp_path, capsys):
+    f = tmp_path / "ev.toml"
+    f.write_text("[[events]]\ntime = 3.0\nkind = 'appear'\nname = 'closed'\n"
+                 "polygon = [[44, 0], [60, 0], [60, 40], [44, 40]]\n", encoding="utf-8")
+    out = tmp_path / "out"
+    code = run_cli(["fly", SMALL, "--events", str(f), "--out", str(out), "--no-plots", "--seed", "0"])
+    assert code == 3
+    summary = json.loads((out / "flight.json").read_text())
+    assert summary["status"] == "stopped" and summary["team"]["stops"] == 1
+    replans = json.loads((out / "replans.json").read_text())["replans"]
+    assert replans[0]["status"] == "stop"
+    rows = list(csv.DictReader((out / "flight.csv").open()))
+    last = [r for r in rows if float(r["t"]) == float(rows[-1]["t"])]
+    assert all(float(r["x"]) < 44 - 0.5 for r in last)  # stopped short of the closed zone
+    speeds = [math.hypot(float(r["vx"]), float(r["vy"])) for r in last]
+    assert max(speeds) < 0.2  # hovering
+    assert summary["team"]["min_clearance_m"] > 0
+
+
+def test_same_seed_same_flight_csv(tmp_path, calm):
+    from staghunt.io.flight_files import flight_csv
+
+    again = fly(SMALL, seed=0)
+    assert flight_csv(again) == flight_csv(calm)
+
+
+def test_flight_files_and_fly_from_a_result_file(tmp_path, calm):
+    from staghunt.api import plan
+    from staghunt.io.flight_files import write_flight
+    from staghunt.io.result_json import write_result
+
+    files = write_flight(calm, tmp_path, plots=False)
+    assert {p.name for p in files} == {"flight.csv", "replans.json", "flight.json"}
+    rows = list(csv.DictReader((tmp_path / "flight.csv").open()))
+    assert set(rows[0]) >= {"t", "uav", "x", "y", "z", "ref_x", "ref_y", "ref_z", "error"}
+    assert {r["uav"] for r in rows} == {"1", "2"}
+    summary = json.loads((tmp_path / "flight.json").read_text())
+    assert summary["status"] == "arrived"
+    assert summary["uavs"][0]["tracking_rms_m"] == pytest.approx(float(calm.tracking_rms[0]))
+    scenario = load_scenario(SMALL)
+    result = plan(scenario, seed=2)
+    write_result(result, tmp_path / "result.json")
+    flown = fly(str(tmp_path / "result.json"), seed=2)
+    assert np.allclose(flown.plan_waypoints, result.waypoints)
+
+
+def test_fly_refuses_bad_settings_before_simulating():
+    with pytest.raises(ValueError, match="latency_budget"):
+        fly(SMALL, config=FlyConfig(latency_budget=-1.0))
+    with pytest.raises(ValueError, match="seed"):
+        fly(SMALL, seed=-3)
+    with pytest.raises(ScenarioError):
+        fly("no-such-scenario.toml")
