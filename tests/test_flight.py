@@ -288,6 +288,7 @@ def test_popup_on_the_next_leg_triggers_a_replan_and_the_flight_stays_clear(calm
     assert r.replans[0].switch_time == pytest.approx(r.replans[0].time + 0.3)
     solved = [x for x in r.replans if x.solved]
     assert solved and solved[0].nash_gaps and solved[0].evaluations > 0
+    assert 0 <= solved[0].state_error_m < 0.5
     # the true clearance to the pop-up after it appeared, in the simulated flight
     after = r.times >= t_event
     d = np.hypot(r.actual[:, after, 0] - popup.x, r.actual[:, after, 1] - popup.y) - popup.radius - 0.5
@@ -359,3 +360,26 @@ def test_fly_refuses_bad_settings_before_simulating():
         fly(SMALL, seed=-3)
     with pytest.raises(ScenarioError):
         fly("no-such-scenario.toml")
+
+
+def test_documented_and_example_events_files_load(tmp_path):
+    import re
+
+    root = Path(__file__).resolve().parent.parent
+    text = (root / "docs" / "scenario-format.md").read_text(encoding="utf-8")
+    section = text.split("## A site that changes", 1)[1]
+    block = re.search(r"```toml\n(.*?)```", section, re.S).group(1)
+    f = tmp_path / "doc.toml"
+    f.write_text(block, encoding="utf-8")
+    scenario = load_scenario("scenario2")
+    doc = load_events(f, scenario)
+    assert len(doc.events) == 3 and len(doc.moving) == 1 and len(doc.jibs) == 1
+    example = load_events(root / "examples" / "events_popup.toml", scenario)
+    assert example.events[0].time == 6.0 and example.jibs[0].name == "crane 1 jib"
+
+
+def test_schema_events_command(capsys):
+    assert run_cli(["schema", "--events"]) == 0
+    schema = json.loads(capsys.readouterr().out)
+    assert schema["title"] == "staghunt events"
+    assert set(schema["properties"]) == {"events", "moving", "jibs", "sensing"}

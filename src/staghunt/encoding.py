@@ -32,12 +32,15 @@ class SearchSpace:
 
 
 def search_space(
-    starts: np.ndarray, goals: np.ndarray, waypoints: int, velocity_fraction: float = 0.5
+    starts: np.ndarray, goals: np.ndarray, waypoints: int, velocity_fraction: float = 0.5,
+    azimuth: float = ANGLE_RANGE,
 ) -> SearchSpace:
     """Ranges of docs/model.md eq. (14) for ``(N, 3)`` starts and goals (``(x, y, h)``).
 
     ``rho in [0, 2 |G - S| / K]``, ``psi in [-pi/4, pi/4]``, ``phi in phi0 +- pi/4`` with
     ``phi0 = atan2(Gy - Sy, Gx - Sx)``; velocity limit ``velocity_fraction * (max - min)``.
+    ``azimuth``: the half-width of the ``phi`` range (the paper's ``pi/4``; a re-plan from rest
+    next to an obstacle widens it, docs/model.md section 8).
     """
     starts = np.atleast_2d(starts)
     goals = np.atleast_2d(goals)
@@ -45,8 +48,8 @@ def search_space(
     phi0 = np.arctan2(d[:, 1], d[:, 0])
     rho_max = 2.0 * np.linalg.norm(d, axis=1) / waypoints
     zeros = np.zeros_like(phi0)
-    lower = np.stack([zeros, zeros - ANGLE_RANGE, phi0 - ANGLE_RANGE], axis=1)
-    upper = np.stack([rho_max, zeros + ANGLE_RANGE, phi0 + ANGLE_RANGE], axis=1)
+    lower = np.stack([zeros, zeros - ANGLE_RANGE, phi0 - azimuth], axis=1)
+    upper = np.stack([rho_max, zeros + ANGLE_RANGE, phi0 + azimuth], axis=1)
     return SearchSpace(lower=lower, upper=upper, vmax=velocity_fraction * (upper - lower))
 
 

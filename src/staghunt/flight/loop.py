@@ -172,7 +172,6 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
                           mean_alt, dt, wind_rng)
     team = SimulatedTeam(starts, dt, wind)
     planner = Replanner(scenario, dyn, config, engine, replan_rng)
-    goals = ref0.pieces[-1].points[:, -1]
     ref = ref0
     pending = [e for e in dyn.events if e.kind == "appear"]
     stops, stopped_at, retries = 0, -1.0, 0
@@ -188,8 +187,12 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
         t = k * dt
         if k % per_tick == 0:
             # The planner's tick: measured states, sensing, predicted conflicts.
-            meas = team.positions() + noise_rng.normal(0.0, dyn.sensing.position_noise, (len(goals), 3)) \
-                if dyn.sensing.position_noise > 0 else team.positions()
+            meas = team.positions()
+            meas_v = team.velocities()
+            if dyn.sensing.position_noise > 0:
+                meas = meas + noise_rng.normal(0.0, dyn.sensing.position_noise, meas.shape)
+            if dyn.sensing.velocity_noise > 0:
+                meas_v = meas_v + noise_rng.normal(0.0, dyn.sensing.velocity_noise, meas_v.shape)
             trigger = ""
             for e in list(pending):
                 if e.time <= t and e.shape is not None:
@@ -214,7 +217,7 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
                 scale = config.stop_budget_factor if stopped_at >= 0 else 1
                 if stopped_at >= 0:
                     retries += 1
-                ref, rec = planner.solve(ref, t, trigger, scale, windows)
+                ref, rec = planner.solve(ref, t, trigger, scale, windows, (meas, meas_v))
                 if rec.stopped and rec.solved:
                     stops += 1
                 if not rec.solved:
@@ -274,7 +277,9 @@ def judge(scenario: Scenario, dyn: Dynamics, flight: dict[str, Any]) -> dict[str
     if dyn.known_motion:
         clear = np.minimum(clear, moving_clearance(dyn, x, t, r)[0])
     err = np.linalg.norm(x - ref, axis=-1)
-    arrival = arrival_times(t, x, ref[:, -1])
+    goals = scenario.goals()
+    goals[:, 2] = scenario.world.terrain.absolute(goals[:, 0], goals[:, 1], goals[:, 2])
+    arrival = arrival_times(t, x, goals)
     return {
         "min_separation": separations(x).min(axis=1),
         "min_clearance": clear.min(axis=1),

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from staghunt.costs import CostModel, evaluate
+from staghunt.encoding import ANGLE_RANGE
 from staghunt.engine import Engine
 from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
 from staghunt.flight.safety import moving_clearance, separations, static_clearance
@@ -44,6 +45,12 @@ from staghunt.world.dynamic import Dynamics, max_motion_speed, motion_names
 
 CHECK_STEP_S = 0.05
 """Time step of the in-time checks of a new piece and of the horizon (s)."""
+WIDE_AZIMUTH = math.pi / 2
+"""Half-width of the heading range of a plan from rest (a stop, or the hover): the paper's
+``pi/4`` keeps every leg within 45 degrees of the goal direction, and a UAV at rest just in
+front of an obstacle cannot leave it that way."""
+MAX_DELAY_S = 60
+"""Longest take-off delay (s) tried to let a known motion pass."""
 MAX_STRETCH = 2.0
 """A plan from a moving switch state that must be slowed more than this to meet the limits
 (a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
@@ -134,7 +141,9 @@ class ReplanRecord:
 from rest; ``"stop"``: a synchronised stop to hover, no plan yet; ``"emergency stop"``: the
 same at twice the acceleration, at once),
     ``attempts`` solves, and the certificate (``nash_gaps`` relative per UAV, ``verdict``,
-    ``certified``: an epsilon-equilibrium)."""
+    ``certified``: an epsilon-equilibrium). ``state_error_m``: the largest distance between a
+    UAV's state predicted from the fed-back one (position + velocity x latency) and the
+    reference state the new plan starts from."""
 
     time: float
     switch_time: float
@@ -149,6 +158,7 @@ same at twice the acceleration, at once),
     verdict: str = ""
     problems: tuple[str, ...] = ()
     windows: tuple[tuple[str, float, float], ...] = ()
+    state_error_m: float = 0.0
 
     @property
     def solved(self) -> bool:
@@ -169,6 +179,7 @@ same at twice the acceleration, at once),
             "attempts": self.attempts, "nash_gaps": list(self.nash_gaps),
             "certified": self.certified, "verdict": self.verdict, "problems": list(self.problems),
             "windows": [{"obstacle": w[0], "from": round(w[1], 3), "to": round(w[2], 3)} for w in self.windows],
+            "state_error_m": self.state_error_m,
         }
 
 
@@ -272,11 +283,18 @@ class Replanner:
         self.known = KnownWorld(scenario)
         self.records: list[ReplanRecord] = []
         self._spent = 0
+        self._azimuth = ANGLE_RANGE
 
     def solve(self, ref: Reference, t_now: float, trigger: str, scale: int = 1,
-              windows: list[tuple[str, float, float]] | None = None) -> tuple[Reference, ReplanRecord]:
+              windows: list[tuple[str, float, float]] | None = None,
+              measured: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[Reference, ReplanRecord]:
         """Re-plan at tick ``t_now``; returns the new reference and its record. ``scale``: budget
-        factor (after a stop).
+        factor (after a stop). ``measured``: the fed-back positions and velocities ``(N, 3)``.
+
+        The new plan starts from the *reference* state at the switch time, so that the splice is
+        continuous for the controller; the state predicted from the fed-back one is compared
+        with it and the difference reported (``state_error_m``: the tracking error plus the
+        sensor noise, a few centimetres without wind).
 
         First from the switch state (moving); if no plan from there passes (a sharp turn at
         speed, no feasible path), from rest: the team stops in sync along its current paths
@@ -293,15 +311,21 @@ class Replanner:
         self._spent = 0
         windows = list(windows or [])
         warm = remaining_plan(scenario, ref, t_s, K)
-        new_ref, out, sub, problems, attempts = self._attempts(ref, ref, t_s, windows, warm, settings,
-                                                               cfg.attempts, MAX_STRETCH)
+        error = 0.0
+        if measured is not None:
+            predicted = measured[0] + measured[1] * budget_s
+            error = float(np.linalg.norm(predicted - ref.state(np.array([t_s]))[0][:, 0], axis=-1).max())
+        at_rest = ref.piece_at(t_s).kind == "stop"
+        new_ref, out, sub, problems, attempts = self._attempts(
+            ref, ref, t_s, windows, warm, settings, cfg.attempts, MAX_STRETCH,
+            WIDE_AZIMUTH if at_rest else ANGLE_RANGE)
         status = "replanned"
-        if new_ref is None and ref.piece_at(t_s).kind != "stop":
+        if new_ref is None and not at_rest:
             stopped, stop, bad = self._stop_short(ref, t_now, t_s)
             if not bad:
                 rest = remaining_plan(scenario, stopped, stop.t1, K)
                 more, out, sub, problems2, n2 = self._attempts(stopped, stopped, stop.t1, windows, rest,
-                                                               settings, 2, math.inf)
+                                                               settings, 2, math.inf, WIDE_AZIMUTH)
                 attempts += n2
                 if more is not None:
                     new_ref, status = more, "stop, replanned"
@@ -310,16 +334,18 @@ class Replanner:
         if new_ref is None:
             new_ref, status = self._stop(ref, t_now, t_s)
             record = ReplanRecord(t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s,
-                                  self._spent, attempts, problems=tuple(problems[:5]), windows=tuple(windows))
+                                  self._spent, attempts, problems=tuple(problems[:5]), windows=tuple(windows),
+                                  state_error_m=error)
             return new_ref, self._keep(record)
         cert = certify_plan(sub, out.plan, particles=cfg.certify_particles,
                             iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
-                            epsilon=cfg.epsilon, settings=settings, runner=self.engine.run_swarm)
+                            epsilon=cfg.epsilon, settings=settings, runner=self.engine.run_swarm,
+                            azimuth=self._azimuth)
         self._spent += sum(u.evaluations for u in cert.uavs)
         record = ReplanRecord(
             t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s, self._spent, attempts,
             tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, (),
-            tuple(windows))
+            tuple(windows), error)
         return new_ref, self._keep(record)
 
     def _stop_short(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, Piece, bool]:
@@ -345,9 +371,11 @@ class Replanner:
 
     def _attempts(self, ref: Reference, base: Reference, t0: float,
                   windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
-                  tries: int, max_stretch: float) -> tuple[Reference | None, Any, Any, list[str], int]:
+                  tries: int, max_stretch: float, azimuth: float
+                  ) -> tuple[Reference | None, Any, Any, list[str], int]:
         """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
-        known motion adds its window to ``windows``). Returns the spliced reference (``None``
+        known motion adds its window to ``windows``), with headings within ``azimuth`` of the
+        goal direction. Returns the spliced reference (``None``
         if no plan passed), the last rounds' outcome, its scenario, the problems and the tries."""
         scenario, cfg = self.scenario, self.config
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
@@ -358,12 +386,13 @@ class Replanner:
         problems: list[str] = []
         out = sub = None
         goals = _absolute(scenario, scenario.goals()[:, None])
+        self._azimuth = azimuth
         for attempt in range(1, tries + 1):
             sub = self._problem(starts, cyl, prm, windows)
             model = CostModel.from_scenario(sub)
             out = best_response_rounds(model, warm, settings, self.rng, self.engine.run_swarm,
                                        self.engine.evaluate, budget, 0, repair=True,
-                                       reply_start=cfg.reply_start)
+                                       reply_start=cfg.reply_start, azimuth=azimuth)
             self._spent += out.evaluations
             warm = out.plan
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
@@ -463,16 +492,24 @@ def offline_plan(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray, confi
                  solve: Any) -> tuple[np.ndarray, Piece, list[tuple[str, float, float]], list[str]]:
     """Make a plan ``(N, K, 3)`` sound against the known motions before take-off: time it, check
     it in time against the motions, and while it conflicts re-plan (``solve(windows) -> (N, K,
-    3)``) with the swept volumes of the conflict windows. Returns the plan, its timed piece,
-    the windows used and the problems left (empty: sound)."""
+    3)``) with the swept volumes of the conflict windows. If that does not remove a conflict
+    (a motion over a goal, or one the routes cannot avoid), the take-off is delayed, by whole
+    seconds up to :data:`MAX_DELAY_S`, until the first plan without the swept stand-ins (or the
+    last one) passes the in-time check. Returns the plan, its timed piece (starting at the
+    take-off delay), the windows used and the problems left (empty: sound)."""
     known = KnownWorld(scenario)
     windows: list[tuple[str, float, float]] = []
     problems: list[str] = []
+    start = _absolute(scenario, scenario.starts()[:, None])
+    goal = _absolute(scenario, scenario.goals()[:, None])
+
+    def timed(wp: np.ndarray, delay: float) -> Piece:
+        return timed_path(np.concatenate([start, _absolute(scenario, wp), goal], axis=1), delay,
+                          scenario.vehicle)
+
+    tried = [np.asarray(waypoints, dtype=float)]
     for _ in range(config.attempts + 1):
-        start = _absolute(scenario, scenario.starts()[:, None])
-        goal = _absolute(scenario, scenario.goals()[:, None])
-        piece = timed_path(np.concatenate([start, _absolute(scenario, waypoints), goal], axis=1),
-                           0.0, scenario.vehicle)
+        piece = timed(waypoints, 0.0)
         problems, found, _ = check_piece(scenario, known, dyn, Reference((piece,)), 0.0, piece.t1)
         if not problems:
             return waypoints, piece, windows, []
@@ -481,4 +518,11 @@ def offline_plan(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray, confi
             break
         windows.extend((n, max(0.0, a - config.window_pad), b + config.window_pad) for n, a, b in new)
         waypoints = solve(windows)
-    return waypoints, piece, windows, problems
+        tried.append(waypoints)
+    for delay in np.arange(1.0, MAX_DELAY_S + 1.0):
+        for wp in (tried[0], tried[-1]):
+            piece = timed(wp, float(delay))
+            bad, _, _ = check_piece(scenario, known, dyn, Reference((piece,)), 0.0, piece.t1)
+            if not bad:
+                return wp, piece, windows, []
+    return waypoints, timed(waypoints, 0.0), windows, problems

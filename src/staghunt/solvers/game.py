@@ -39,7 +39,7 @@ from typing import Any, Callable
 import numpy as np
 
 from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
-from staghunt.encoding import encode
+from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
@@ -203,7 +203,8 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                          rng: np.random.Generator, runner: SwarmRunner, evaluator: Evaluator,
                          budget: int, spent: int = 0,
                          on_reply: Callable[[int, np.ndarray], None] | None = None,
-                         repair: bool = False, reply_start: float = REPLY_START) -> RoundsOutcome:
+                         repair: bool = False, reply_start: float = REPLY_START,
+                         azimuth: float = ANGLE_RANGE) -> RoundsOutcome:
     """Steps 2-4 of the method from the allocation ``plan`` ``(N, K, 3)``: best-response
     rounds until they converge or ``budget`` path evaluations (``spent`` of them already used)
     are spent. ``on_reply(spent, J)`` follows every reply.
@@ -213,7 +214,8 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     plan's total violation, and counts as a full gain; once feasible, the usual rule applies.
     Without ``repair`` only feasible improvements are ever accepted. ``reply_start``: the first
     reply budget as a share of the budget left (a warm re-plan starts near an equilibrium and
-    gains from few strong replies rather than many weak ones)."""
+    gains from few strong replies rather than many weak ones). ``azimuth``: half-width of the
+    replies' heading range (:func:`~staghunt.encoding.search_space`)."""
     N, P = model.n_uavs, settings.particles
     plan = np.array(plan, dtype=float)
     current = evaluate(model, plan[None])
@@ -234,7 +236,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
         reply_settings = settings.with_(particles=p_r, iterations=i_r)
         gains = np.zeros(N)
         for n in range(N):
-            problem = solo_problem(model, plan, n, settings.velocity_fraction)
+            problem = solo_problem(model, plan, n, settings.velocity_fraction, azimuth)
             paths = [*replies[n][::-1], formation_target(model, plan, n)]
             warm = _warm_particles(problem.space, problem.starts, paths, rng, p_r)
             out = runner(problem, reply_settings, rng, None, warm)

@@ -14,7 +14,7 @@ from typing import TYPE_CHECKING, Literal
 import numpy as np
 
 from staghunt.costs import CostModel, evaluate
-from staghunt.encoding import SearchSpace, decode, search_space
+from staghunt.encoding import ANGLE_RANGE, SearchSpace, decode, search_space
 
 if TYPE_CHECKING:
     from staghunt.scenario.model import SolverSettings
@@ -104,10 +104,12 @@ def team_problem(model: CostModel, waypoints: int, velocity_fraction: float,
     )
 
 
-def solo_problem(model: CostModel, waypoints: np.ndarray, n: int, velocity_fraction: float) -> SwarmProblem:
+def solo_problem(model: CostModel, waypoints: np.ndarray, n: int, velocity_fraction: float,
+                 azimuth: float = ANGLE_RANGE) -> SwarmProblem:
     """UAV ``n``'s unilateral deviation from the team plan ``waypoints`` ``(N, K, 3)``: one
     swarm for UAV ``n`` (``member_of = -1`` for the others, whose paths are ``fixed``); the
-    compared cost is ``J_n`` alone (``players = (n,)``) and the violation its own."""
+    compared cost is ``J_n`` alone (``players = (n,)``) and the violation its own.
+    ``azimuth``: half-width of the heading range (:func:`~staghunt.encoding.search_space`)."""
     N, K = waypoints.shape[0], waypoints.shape[1]
     member_of = np.full(N, -1, dtype=np.intp)
     member_of[n] = 0
@@ -116,7 +118,7 @@ def solo_problem(model: CostModel, waypoints: np.ndarray, n: int, velocity_fract
     fixed.setflags(write=False)
     return SwarmProblem(
         model=model,
-        space=search_space(model.starts[one], model.goals[one], K, velocity_fraction),
+        space=search_space(model.starts[one], model.goals[one], K, velocity_fraction, azimuth),
         starts=model.starts[one],
         lower=model.lower[None],
         upper=model.upper[None],

@@ -49,7 +49,7 @@ from typing import Callable
 import numpy as np
 
 from staghunt.costs import CostModel, evaluate
-from staghunt.encoding import decode, encode
+from staghunt.encoding import ANGLE_RANGE, decode, encode
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
@@ -189,6 +189,7 @@ def certify_plan(
     settings: SolverSettings | None = None,
     progress: Callable[[int, int, int, int], None] | None = None,
     runner: SwarmRunner = run_swarm,
+    azimuth: float = ANGLE_RANGE,
 ) -> Certificate:
     """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
 
@@ -197,7 +198,8 @@ def certify_plan(
     (default: the scenario's). ``epsilon``: relative tolerance of the verdict.
     ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
     ``runner``: what runs the searches (an engine's ``run_swarm``); the plan's costs are always
-    evaluated with the NumPy reference. Raises ``ValueError`` for unusable inputs, including
+    evaluated with the NumPy reference. ``azimuth``: half-width of the deviations' heading
+    range (the strategy space the plan was solved in). Raises ``ValueError`` for unusable inputs, including
     settings that disable the search (no velocity, no attraction): those cannot certify.
     """
     wp = np.asarray(waypoints, dtype=float)
@@ -231,7 +233,7 @@ def certify_plan(
         if not feasible:
             gaps.append(UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0))
             continue
-        problem = solo_problem(model, wp, n, run_settings.velocity_fraction)
+        problem = solo_problem(model, wp, n, run_settings.velocity_fraction, azimuth)
         initial = encode(wp[n][None, None], problem.starts, problem.space)[0]  # (1, K, 3)
         warm = decode(initial[None], problem.starts, problem.lower, problem.upper)[0, 0]
         roundtrip = float(np.max(np.abs(warm - wp[n])))
