@@ -44,11 +44,12 @@ HERE = Path(__file__).resolve().parent
 
 
 def _reference(scenario: Any, waypoints: np.ndarray) -> Any:
+    from staghunt.costs import to_absolute
     from staghunt.flight.reference import Reference, timed_path
-    from staghunt.flight.replan import _absolute
 
-    pts = np.concatenate([_absolute(scenario, scenario.starts()[:, None]), _absolute(scenario, waypoints),
-                          _absolute(scenario, scenario.goals()[:, None])], axis=1)
+    g = scenario.world.terrain
+    pts = np.concatenate([to_absolute(g, scenario.starts()[:, None]), to_absolute(g, waypoints),
+                          to_absolute(g, scenario.goals()[:, None])], axis=1)
     return Reference((timed_path(pts, 0.0, scenario.vehicle),))
 
 

@@ -12,7 +12,8 @@ from typing import Any
 import numpy as np
 import pytest
 
-from staghunt.plots.flight import flight_animation, flight_figures
+from staghunt.plots.animation import flight_animation
+from staghunt.plots.flight import flight_figures
 from staghunt.plots.replay import replay_data, replay_html, write_replay_html
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"

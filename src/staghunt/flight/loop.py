@@ -20,14 +20,8 @@ import numpy as np
 
 from staghunt.engine import get_engine
 from staghunt.flight.reference import Reference
-from staghunt.flight.replan import (
-    FlyConfig,
-    ReplanRecord,
-    Replanner,
-    check_piece,
-    offline_plan,
-    swept_obstacles,
-)
+from staghunt.flight.known import check_piece, swept_obstacles
+from staghunt.flight.replan import FlyConfig, ReplanRecord, Replanner, offline_plan
 from staghunt.flight.safety import moving_clearance, separations, static_clearance
 from staghunt.flight.vehicles import DrydenGust, SimulatedTeam
 from staghunt.scenario import Scenario

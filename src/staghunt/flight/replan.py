@@ -27,24 +27,31 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from staghunt.costs import CostModel, evaluate
+from staghunt.costs import CostModel, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE
 from staghunt.engine import Engine
+from staghunt.flight.known import (
+    KnownWorld,
+    check_piece,
+    covers,
+    remaining_plan,
+    sub_scenario,
+    swept_obstacles,
+    to_xyh,
+)
 from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
-from staghunt.flight.safety import moving_clearance, separations, static_clearance
+from staghunt.flight.safety import static_clearance
 from staghunt.scenario import Scenario
 from staghunt.solvers.game import best_response_rounds
 from staghunt.solvers.response import certify_plan
 from staghunt.world import Cylinder, Prism
-from staghunt.world.dynamic import Dynamics, max_motion_speed, motion_names
+from staghunt.world.dynamic import Dynamics
 
-CHECK_STEP_S = 0.05
-"""Time step of the in-time checks of a new piece and of the horizon (s)."""
 WIDE_AZIMUTH = math.pi / 2
 """Half-width of the heading range of a plan from rest (a stop, or the hover): the paper's
 ``pi/4`` keeps every leg within 45 degrees of the goal direction, and a UAV at rest just in
@@ -183,97 +190,6 @@ same at twice the acceleration, at once),
         }
 
 
-@dataclass
-class KnownWorld:
-    """What the planner knows of the site: the scenario's static obstacles, the appeared ones
-    it has sensed (by name), and the names it knows to be gone."""
-
-    scenario: Scenario
-    sensed: dict[str, Cylinder | Prism] = field(default_factory=dict)
-    removed: set[str] = field(default_factory=set)
-
-    def shapes(self) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
-        w = self.scenario.world
-        cyl = [c for c in w.cylinders if c.name not in self.removed]
-        prm = [p for p in w.prisms if p.name not in self.removed]
-        for name, s in self.sensed.items():
-            if name not in self.removed:
-                (cyl if isinstance(s, Cylinder) else prm).append(s)
-        return tuple(cyl), tuple(prm)
-
-
-def to_xyh(scenario: Scenario, absolute: np.ndarray) -> np.ndarray:
-    """``(..., 3)`` absolute ``(x, y, z)`` -> ``(x, y, h)`` above the ground."""
-    out = np.array(absolute, dtype=float, copy=True)
-    out[..., 2] -= scenario.world.terrain.height(out[..., 0], out[..., 1])
-    return out
-
-
-def sub_scenario(scenario: Scenario, starts_xyh: np.ndarray, cylinders: tuple[Cylinder, ...],
-                 prisms: tuple[Prism, ...]) -> Scenario:
-    """``scenario`` with new starts ``(N, 3)`` ``(x, y, h)`` and the given obstacles (goals,
-    formation, weights and settings unchanged)."""
-    team = tuple(replace(u, start=tuple(float(v) for v in s)) for u, s in zip(scenario.team, starts_xyh))
-    world = replace(scenario.world, cylinders=cylinders, prisms=prisms)
-    return replace(scenario, team=team, world=world)
-
-
-def remaining_plan(scenario: Scenario, ref: Reference, t_s: float, K: int) -> np.ndarray:
-    """``(N, K, 3)`` ``(x, y, h)``: the rest of the current plan after ``t_s``, resampled at
-    ``K`` evenly spaced times of the path being flown (the warm start of a re-plan)."""
-    piece = ref.piece_at(t_s)
-    base = piece.base if piece.kind == "stop" and piece.base is not None else piece
-    tau = piece.warp(np.array([t_s]))[0][0] if piece.kind == "stop" else t_s
-    tau = min(max(tau, base.t0), base.t1)
-    times = tau + (base.t1 - tau) * np.arange(1, K + 1) / (K + 1)
-    pos = base.state(times)[0]  # (N, K, 3)
-    return np.clip(to_xyh(scenario, pos), scenario.world.bounds.lower, scenario.world.bounds.upper)
-
-
-def check_piece(scenario: Scenario, known: KnownWorld, dyn: Dynamics, piece_ref: Reference,
-                t0: float, t1: float) -> tuple[list[str], list[tuple[str, float, float]], float]:
-    """Check the reference over ``[t0, t1]`` every :data:`CHECK_STEP_S`: clearance to the
-    known obstacles (at least half the hard clearance: the rest is left for tracking error),
-    separation above ``d_s + 2 r``, height above ground, and clearance to the known motions at
-    their true positions (the hard clearance plus the distance the UAV and the obstacle can
-    close between two samples). Returns the problems, the motions' conflict windows
-    ``(name, first, last)`` and the least clearance to anything known (m)."""
-    if t1 <= t0:
-        return [], [], math.inf
-    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
-    pos = piece_ref.state(t)[0]  # (N, T, 3)
-    r = np.array([u.radius for u in scenario.team])
-    names = [u.name for u in scenario.team]
-    c = scenario.costs
-    problems: list[str] = []
-    cyl, prm = known.shapes()
-    clear = static_clearance(cyl, prm, pos, r)
-    if np.any(clear < 0.5 * c.min_clearance):
-        n, k = np.unravel_index(np.argmin(clear), clear.shape)
-        problems.append(f"{names[n]} passes {clear[n, k]:.2f} m from an obstacle at t = {t[k]:.1f} s")
-    sep = separations(pos)
-    limit = c.safe_distance + 2 * r
-    if np.any(sep <= limit[:, None]):
-        n, k = np.unravel_index(np.argmin(sep - limit[:, None]), sep.shape)
-        problems.append(f"{names[n]} comes {sep[n, k]:.2f} m from a team-mate at t = {t[k]:.1f} s")
-    h = pos[..., 2] - scenario.world.terrain.height(pos[..., 0], pos[..., 1])
-    if np.any(h < 0):
-        problems.append(f"below ground at t = {t[np.argmin(h.min(axis=0))]:.1f} s")
-    windows: list[tuple[str, float, float]] = []
-    least = float(clear.min(initial=math.inf))
-    if dyn.known_motion:
-        margin = (scenario.vehicle.max_speed + max_motion_speed(dyn)) * CHECK_STEP_S / 2
-        mc, which = moving_clearance(dyn, pos, t, r)
-        least = min(least, float(mc.min(initial=math.inf)))
-        bad = mc < c.min_clearance + margin
-        labels = motion_names(dyn)
-        for i in np.unique(which[bad]):
-            ks = np.flatnonzero((bad & (which == i)).any(axis=0))
-            windows.append((labels[i], float(t[ks[0]]), float(t[ks[-1]])))
-            problems.append(f"conflict with {labels[i]} from t = {t[ks[0]]:.1f} s to {t[ks[-1]]:.1f} s")
-    return problems, windows, least
-
-
 class Replanner:
     """Re-solves the game in flight for one episode; holds what it needs between re-plans."""
 
@@ -385,7 +301,7 @@ class Replanner:
         cyl, prm = self.known.shapes()
         problems: list[str] = []
         out = sub = None
-        goals = _absolute(scenario, scenario.goals()[:, None])
+        goals = to_absolute(scenario.world.terrain, scenario.goals()[:, None])
         self._azimuth = azimuth
         for attempt in range(1, tries + 1):
             sub = self._problem(starts, cyl, prm, windows)
@@ -398,7 +314,7 @@ class Replanner:
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
                 problems = ["no feasible plan from the switch state"]
                 continue
-            absolute = np.concatenate([state[0][:, None], _absolute(sub, out.plan), goals], axis=1)
+            absolute = np.concatenate([state[0][:, None], to_absolute(sub.world.terrain, out.plan), goals], axis=1)
             try:
                 piece = timed_path(absolute, t0, scenario.vehicle, state[1], state[2],
                                    max_stretch=max_stretch)
@@ -408,7 +324,7 @@ class Replanner:
             problems, found, _ = check_piece(sub, self.known, self.dyn, new_ref, t0, piece.t1)
             if not problems:
                 return new_ref, out, sub, [], attempt
-            new = [w for w in found if not any(_covers(o, w) for o in windows)]
+            new = [w for w in found if not any(covers(o, w) for o in windows)]
             if not new:
                 return None, out, sub, problems, attempt  # not a motion's window: no retry helps
             windows.extend((n, max(t0, a - cfg.window_pad), b + cfg.window_pad) for n, a, b in new)
@@ -445,7 +361,7 @@ class Replanner:
         sub = sub_scenario(self.scenario, starts, cyl, prm)
         more_c, more_p = swept_obstacles(sub, self.dyn, windows)
         sub = sub_scenario(self.scenario, starts, cyl + more_c, prm + more_p)
-        at = _absolute(sub, starts[:, None])
+        at = to_absolute(sub.world.terrain, starts[:, None])
         r = np.array([u.radius for u in sub.team])
         have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
         if have < sub.costs.min_clearance:
@@ -456,36 +372,6 @@ class Replanner:
     def _keep(self, record: ReplanRecord) -> ReplanRecord:
         self.records.append(record)
         return record
-
-
-def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, float, float]]
-                    ) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
-    """The swept stand-ins (:meth:`Dynamics.swept`) of the conflict ``windows`` ``(name, from,
-    to)``, less any that holds a UAV's start or goal in ``scenario`` within the hard clearance:
-    the UAV is there at another time than the motion (the in-time check judges it), and a
-    stand-in around an end would leave no plan at all."""
-    cyl: list[Cylinder] = []
-    prm: list[Prism] = []
-    for name, a, b in windows:
-        c2, p2 = dyn.swept(a, b, {name})
-        cyl += c2
-        prm += p2
-    ends = np.concatenate([_absolute(scenario, scenario.starts()), _absolute(scenario, scenario.goals())])
-    r = np.tile(np.array([u.radius for u in scenario.team]), 2)
-    need = scenario.costs.min_clearance
-    keep_c = tuple(c for c in cyl if np.all(static_clearance((c,), (), ends[:, None], r) >= need))
-    keep_p = tuple(p for p in prm if np.all(static_clearance((), (p,), ends[:, None], r) >= need))
-    return keep_c, keep_p
-
-
-def _absolute(scenario: Scenario, xyh: np.ndarray) -> np.ndarray:
-    out = np.array(xyh, dtype=float, copy=True)
-    out[..., 2] = scenario.world.terrain.absolute(out[..., 0], out[..., 1], out[..., 2])
-    return out
-
-
-def _covers(a: tuple[str, float, float], b: tuple[str, float, float]) -> bool:
-    return a[0] == b[0] and a[1] <= b[1] and b[2] <= a[2]
 
 
 def offline_plan(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray, config: FlyConfig,
@@ -500,11 +386,11 @@ def offline_plan(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray, confi
     known = KnownWorld(scenario)
     windows: list[tuple[str, float, float]] = []
     problems: list[str] = []
-    start = _absolute(scenario, scenario.starts()[:, None])
-    goal = _absolute(scenario, scenario.goals()[:, None])
+    start = to_absolute(scenario.world.terrain, scenario.starts()[:, None])
+    goal = to_absolute(scenario.world.terrain, scenario.goals()[:, None])
 
     def timed(wp: np.ndarray, delay: float) -> Piece:
-        return timed_path(np.concatenate([start, _absolute(scenario, wp), goal], axis=1), delay,
+        return timed_path(np.concatenate([start, to_absolute(scenario.world.terrain, wp), goal], axis=1), delay,
                           scenario.vehicle)
 
     tried = [np.asarray(waypoints, dtype=float)]
@@ -513,7 +399,7 @@ def offline_plan(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray, confi
         problems, found, _ = check_piece(scenario, known, dyn, Reference((piece,)), 0.0, piece.t1)
         if not problems:
             return waypoints, piece, windows, []
-        new = [w for w in found if not any(_covers(o, w) for o in windows)]
+        new = [w for w in found if not any(covers(o, w) for o in windows)]
         if not new:
             break
         windows.extend((n, max(0.0, a - config.window_pad), b + config.window_pad) for n, a, b in new)

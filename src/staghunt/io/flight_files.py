@@ -189,7 +189,8 @@ def write_flight(result: Any, out_dir: str | os.PathLike[str], plots: bool = Tru
         write_json_atomic(flight_summary(result), out / "flight.json"),
     ]
     if plots:
-        from staghunt.plots.flight import flight_animation, flight_figures
+        from staghunt.plots.animation import flight_animation
+        from staghunt.plots.flight import flight_figures
         from staghunt.plots.replay import write_replay_html
 
         data = flight_dict(result)

@@ -1,7 +1,9 @@
 """Figures: the only package of staghunt that imports matplotlib.
 
 :mod:`.plan` draws the figures of one plan (paper Figs. 4-8), :mod:`.compare` the figure of a
-method comparison, :mod:`.common` holds the colours and helpers they share. Importing
+method comparison, :mod:`.mission` those of a timed mission, :mod:`.flight` and
+:mod:`.animation` those of a simulated flight, :mod:`.replay` its offline 3-D replay page (HTML,
+with ``replay.js`` and ``replay.css`` inlined), :mod:`.common` the colours and helpers they share. Importing
 ``staghunt.plots`` imports matplotlib; nothing else in the package does.
 """
 
