@@ -199,8 +199,8 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
                 if e.kind == "disappear" and e.time <= t and e.name not in planner.known.removed:
                     planner.known.removed.add(e.name)
             windows: list[tuple[str, float, float]] = []
-            if not trigger and dyn.known_motion and stopped_at < 0:
-                _, found, _ = check_piece(scenario, planner.known, dyn, ref, t, min(t + config.horizon, ref.arrival))
+            if not trigger and dyn.known_motion:
+                _, found, _ = check_piece(scenario, planner.known, dyn, ref, t, t + config.horizon)
                 if found:
                     windows = [(n, max(t, a - config.window_pad), b + config.window_pad) for n, a, b in found]
                     trigger = "predicted conflict with " + ", ".join(sorted({w[0] for w in found}))
@@ -209,12 +209,14 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
                 trigger = "retry after stop"
             if trigger:
                 scale = config.stop_budget_factor if stopped_at >= 0 else 1
-                if stopped_at >= 0:
+                if trigger == "retry after stop":
                     retries += 1
                 ref, rec = planner.solve(ref, t, trigger, scale, windows, (meas, meas_v))
                 if rec.stopped and rec.solved:
                     stops += 1
-                if not rec.solved:
+                if rec.status == "sidestep":
+                    pass  # still holding, elsewhere: the retries go on
+                elif not rec.solved:
                     if stopped_at < 0:
                         stops += 1
                         stopped_at = t

@@ -56,6 +56,10 @@ WIDE_AZIMUTH = math.pi / 2
 """Half-width of the heading range of a plan from rest (a stop, or the hover): the paper's
 ``pi/4`` keeps every leg within 45 degrees of the goal direction, and a UAV at rest just in
 front of an obstacle cannot leave it that way."""
+SEPARATION_MARGIN = 0.5
+"""Metres added to ``d_s`` in a re-plan's problem (and so in its in-time check): the vehicles
+track their references within centimetres without wind, tenths of a metre in it, and a plan
+solved to an equilibrium may keep two UAVs exactly at the limit."""
 MAX_DELAY_S = 60
 """Longest take-off delay (s) tried to let a known motion pass."""
 MAX_STRETCH = 2.0
@@ -146,7 +150,8 @@ class ReplanRecord:
     against ``latency_budget_s``; ``evaluations`` path evaluations), what came out
     (``status``: ``"replanned"``; ``"stop, replanned"``: a synchronised stop, then a new plan
 from rest; ``"stop"``: a synchronised stop to hover, no plan yet; ``"emergency stop"``: the
-same at twice the acceleration, at once),
+same at twice the acceleration, at once; ``"sidestep"``: a hovering team moved as a whole out
+of a known motion's way),
     ``attempts`` solves, and the certificate (``nash_gaps`` relative per UAV, ``verdict``,
     ``certified``: an epsilon-equilibrium). ``state_error_m``: the largest distance between a
     UAV's state predicted from the fed-back one (position + velocity x latency) and the
@@ -248,7 +253,8 @@ class Replanner:
                 else:
                     problems = problems2 or problems
         if new_ref is None:
-            new_ref, status = self._stop(ref, t_now, t_s)
+            moved, status = self._sidestep(ref, t_s) if at_rest else (None, "")
+            new_ref, status = (moved, status) if moved is not None else self._stop(ref, t_now, t_s)
             record = ReplanRecord(t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s,
                                   self._spent, attempts, problems=tuple(problems[:5]), windows=tuple(windows),
                                   state_error_m=error)
@@ -330,6 +336,32 @@ class Replanner:
             windows.extend((n, max(t0, a - cfg.window_pad), b + cfg.window_pad) for n, a, b in new)
         return None, out, sub, problems, tries
 
+    def _sidestep(self, ref: Reference, t_s: float) -> tuple[Reference | None, str]:
+        """A team hovering where a known motion will pass: move the whole formation (one rigid
+        offset, so separations hold) to the nearest spot that stays clear for the horizon,
+        trying 16 headings and offsets of 1 to 4 times the largest moving radius plus body and
+        clearance. Returns ``(None, "")`` when the hover is not threatened or no spot is clear."""
+        cfg, sc = self.config, self.scenario
+        bad, _, _ = check_piece(sc, self.known, self.dyn, ref, t_s, t_s + cfg.horizon)
+        if not bad or not self.dyn.known_motion:
+            return None, ""
+        here = ref.state(np.array([t_s]))[0][:, 0]  # (N, 3)
+        size = max([m.radius for m in self.dyn.moving] + [j.width for j in self.dyn.jibs], default=1.0)
+        step = size + max(u.radius for u in sc.team) + sc.costs.min_clearance
+        b = sc.world.bounds
+        for dist in (1.0, 2.0, 3.0, 4.0):
+            for a in np.radians(np.arange(0.0, 360.0, 22.5)):
+                there = here + dist * step * np.array([math.cos(a), math.sin(a), 0.0])
+                if (there[:, 0].min() < b.xmin or there[:, 0].max() > b.xmax
+                        or there[:, 1].min() < b.ymin or there[:, 1].max() > b.ymax):
+                    continue
+                piece = timed_path(np.stack([here, there], axis=1), t_s, sc.vehicle)
+                cand = ref.spliced(piece)
+                bad, _, _ = check_piece(sc, self.known, self.dyn, cand, t_s, piece.t1 + cfg.horizon)
+                if not bad:
+                    return cand, "sidestep"
+        return None, ""
+
     def _stop(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, str]:
         """The fallback: a synchronised stop at the switch time within ``max_acceleration``; if
         that stop (along the current paths) would come closer than the hard clearance to
@@ -352,7 +384,8 @@ class Replanner:
 
     def _problem(self, starts: np.ndarray, cyl: tuple[Cylinder, ...], prm: tuple[Prism, ...],
                  windows: list[tuple[str, float, float]]) -> Scenario:
-        """The scenario the team solves: known obstacles plus the swept stand-ins of the windows.
+        """The scenario the team solves: known obstacles plus the swept stand-ins of the windows,
+        ``d_s`` grown by :data:`SEPARATION_MARGIN`.
         If a UAV's switch position is already closer than the hard clearance to an obstacle (a
         stop short of a pop-up), the clearance of this problem is relaxed to what it has less half
         the hard clearance, so that a path away from it exists: every leg of the encoding heads
@@ -361,6 +394,7 @@ class Replanner:
         sub = sub_scenario(self.scenario, starts, cyl, prm)
         more_c, more_p = swept_obstacles(sub, self.dyn, windows)
         sub = sub_scenario(self.scenario, starts, cyl + more_c, prm + more_p)
+        sub = replace(sub, costs=replace(sub.costs, safe_distance=sub.costs.safe_distance + SEPARATION_MARGIN))
         at = to_absolute(sub.world.terrain, starts[:, None])
         r = np.array([u.radius for u in sub.team])
         have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
