@@ -2,6 +2,7 @@
 
     python benchmarks/replan.py                         # 100 scenario-2 + 20 site_wedge episodes
     python benchmarks/replan.py --episodes 10 --wedge-episodes 2 --wind-episodes 2   # smoke run
+    python benchmarks/replan.py --solve-only --episodes 30 --wedge-episodes 10       # latency, 2 cores
 
 Episodes (each seeded; the same command gives the same episodes and flights):
 
@@ -22,7 +23,9 @@ hover, re-plan latency measured (p50, p95, max; certificate included), the share
 certified as 1 %-equilibria, tracking error, extra time. ``--jobs 2`` flies two episodes side by
 side, each solving on one thread: the latencies are then those of one core, and a shared
 machine disturbs them (the load average is recorded). Writes ``benchmarks/results/replan.json``
-and ``replan.md``.
+and ``replan.md``. ``--solve-only`` re-solves only each episode's first re-plan on the reference
+(no vehicle simulated), one at a time on the engine's adaptive threads: the latency with both
+cores (``replan_solve.json``, ``replan_solve.md``).
 """
 
 from __future__ import annotations
@@ -251,6 +254,30 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def solve_only(job: dict[str, Any]) -> dict[str, Any]:
+    """The first re-plan of an episode on the reference alone (no vehicle simulated), with the
+    engine's adaptive threads: the solve latency on the whole machine, certificate included."""
+    from dataclasses import replace
+
+    from staghunt.engine import get_engine
+    from staghunt.flight import FlyConfig
+    from staghunt.flight.loop import _source, plan_around
+    from staghunt.flight.replan import Replanner
+
+    engine = get_engine("auto")
+    wp, dyn, n, lead = _with_popup(job, engine)
+    scenario, _, settings = _source(job["result"])
+    scenario = replace(scenario, dynamics=dyn)
+    _, ref, _ = plan_around(scenario, dyn, wp, 1, settings, FlyConfig(), engine)
+    popup = dyn.events[0]
+    planner = Replanner(scenario, dyn, FlyConfig(), engine, np.random.default_rng(job["episode"]))
+    planner.known.sensed[popup.name] = popup.shape
+    t = math.ceil(popup.time * 10.0) / 10.0  # the first planner tick after it appears
+    _, rec = planner.solve(ref, t, "sensed " + popup.name)
+    return {**_meta(job), "status": rec.status, "latency_s": rec.latency_s, "certified": rec.certified,
+            "max_gap": max(rec.nash_gaps, default=None), "evaluations": rec.evaluations}
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--episodes", type=int, default=100)
@@ -258,6 +285,9 @@ def main() -> int:
     ap.add_argument("--wind-episodes", type=int, default=10)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", type=Path, default=HERE / "results")
+    ap.add_argument("--solve-only", action="store_true",
+                    help="only each episode's first re-plan, on the reference, one at a time with the "
+                    "engine's adaptive threads (the latency on the whole machine); writes replan_solve.json")
     args = ap.parse_args()
 
     import staghunt
@@ -285,6 +315,8 @@ def main() -> int:
                 jobs.append({**base, "kind": "scenario2-wind", "wind": 5.0})
             if kind == "site_wedge":
                 jobs.append(base)
+    if args.solve_only:
+        return _solve_only([j for j in jobs if j.get("wind", 0.0) == 0.0], args.out)
     print(f"{len(jobs)} episodes, {args.jobs} at a time", file=sys.stderr)
     t0 = time.perf_counter()
     rows: list[dict[str, Any]] = []
@@ -318,6 +350,28 @@ def main() -> int:
     md = "\n".join(lines) + f"\n\n{args.jobs} episodes at a time, {threads or 'adaptive'} thread(s) per solve, " \
          f"{wall / 60:.1f} min, load average {os.getloadavg()[0]:.2f} at the end.\n"
     (args.out / "replan.md").write_text(md)
+    print(md)
+    return 0
+
+
+def _solve_only(jobs: list[dict[str, Any]], out: Path) -> int:
+    rows = []
+    for i, job in enumerate(jobs):
+        rows.append(solve_only(job))
+        r = rows[-1]
+        print(f"[{i + 1}/{len(jobs)}] {r['kind']} #{r['episode']}: {r['status']} {1000 * r['latency_s']:.0f} ms "
+              f"certified {r['certified']}", file=sys.stderr)
+    lines = ["| episodes | first re-plans solved | latency p50 / p95 / max (ms) | certified |", "|---|---|---|---|"]
+    for k in sorted({r["kind"] for r in rows}):
+        sel = [r for r in rows if r["kind"] == k]
+        lat = np.array([r["latency_s"] for r in sel]) * 1000
+        solved = [r for r in sel if r["status"].endswith("replanned")]
+        lines.append(f"| {k}: {len(sel)} | {len(solved)} | {np.percentile(lat, 50):.0f} / "
+                     f"{np.percentile(lat, 95):.0f} / {lat.max():.0f} | {sum(r['certified'] for r in solved)}/{len(solved)} |")
+    md = "\n".join(lines) + f"\n\none re-plan at a time, adaptive threads, load average {os.getloadavg()[0]:.2f} at the end.\n"
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "replan_solve.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (out / "replan_solve.md").write_text(md)
     print(md)
     return 0
 

@@ -383,3 +383,28 @@ def test_schema_events_command(capsys):
     schema = json.loads(capsys.readouterr().out)
     assert schema["title"] == "staghunt events"
     assert set(schema["properties"]) == {"events", "moving", "jibs", "sensing"}
+
+
+def test_hovering_team_sidesteps_a_known_motion():
+    from dataclasses import replace
+
+    from staghunt.engine import get_engine
+    from staghunt.flight.known import check_piece
+    from staghunt.flight.replan import Replanner
+
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    ref = ref.spliced(stop_piece(ref, 2.0, sc.vehicle))
+    hover = ref.state(np.array([8.0]))[0][:, 0]
+    truck = MovingCylinder("truck", 2.0, ((float(hover[0, 0]), 2.0), (float(hover[0, 0]), 38.0)), 3.0,
+                           start_time=8.0)
+    dyn = Dynamics(moving=(truck,))
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, FlyConfig(), get_engine("numpy"), np.random.default_rng(0))
+    assert check_piece(sc, rp.known, dyn, ref, 8.0, 18.0)[1]  # hovering there, the truck hits
+    moved, status = rp._sidestep(ref, 8.0)
+    assert status == "sidestep"
+    problems, windows, least = check_piece(sc, rp.known, dyn, moved, 8.0, 30.0)
+    assert not problems and not windows and least > sc.costs.min_clearance
+    after = moved.state(np.array([20.0]))[0][:, 0]
+    assert np.allclose(after - after[0], hover - hover[0])  # moved as one rigid formation

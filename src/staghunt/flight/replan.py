@@ -345,7 +345,8 @@ class Replanner:
         bad, _, _ = check_piece(sc, self.known, self.dyn, ref, t_s, t_s + cfg.horizon)
         if not bad or not self.dyn.known_motion:
             return None, ""
-        here = ref.state(np.array([t_s]))[0][:, 0]  # (N, 3)
+        t0 = max(t_s, ref.piece_at(t_s).t1)  # from rest: after the stop in progress, if any
+        here = ref.state(np.array([t0]))[0][:, 0]  # (N, 3)
         size = max([m.radius for m in self.dyn.moving] + [j.width for j in self.dyn.jibs], default=1.0)
         step = size + max(u.radius for u in sc.team) + sc.costs.min_clearance
         b = sc.world.bounds
@@ -355,7 +356,7 @@ class Replanner:
                 if (there[:, 0].min() < b.xmin or there[:, 0].max() > b.xmax
                         or there[:, 1].min() < b.ymin or there[:, 1].max() > b.ymax):
                     continue
-                piece = timed_path(np.stack([here, there], axis=1), t_s, sc.vehicle)
+                piece = timed_path(np.stack([here, there], axis=1), t0, sc.vehicle)
                 cand = ref.spliced(piece)
                 bad, _, _ = check_piece(sc, self.known, self.dyn, cand, t_s, piece.t1 + cfg.horizon)
                 if not bad:
