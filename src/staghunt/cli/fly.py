@@ -83,7 +83,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from staghunt.flight import FlyConfig, fly
-    from staghunt.io.flight_files import write_flight
+    from staghunt.io.flight_files import write_flight, write_flight_figures
 
     out_dir = Path(args.out)
     check_out_dir(out_dir, "flight.json")
@@ -113,7 +113,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     files = write_flight(result, out_dir, plots=False)
     if not args.no_plots:
         try:
-            files = write_flight(result, out_dir, plots=True)
+            files += write_flight_figures(result, out_dir)
         except KeyboardInterrupt:
             raise
         except Exception as exc:  # figures are a by-product: the flight log stands

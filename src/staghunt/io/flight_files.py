@@ -188,14 +188,18 @@ def write_flight(result: Any, out_dir: str | os.PathLike[str], plots: bool = Tru
                           out / "replans.json"),
         write_json_atomic(flight_summary(result), out / "flight.json"),
     ]
-    if plots:
-        from staghunt.plots.animation import flight_animation
-        from staghunt.plots.flight import flight_figures
-        from staghunt.plots.replay import write_replay_html
+    return files + write_flight_figures(result, out) if plots else files
 
-        data = flight_dict(result)
-        files += flight_figures(data, out)
-        files.append(flight_animation(data, out / "flight.gif"))
-        write_replay_html(out / "replay.html", data)
-        files.append(out / "replay.html")
-    return files
+
+def write_flight_figures(result: Any, out_dir: str | os.PathLike[str]) -> list[Path]:
+    """Write the five figures, ``flight.gif`` and ``replay.html`` of ``result`` into ``out_dir``."""
+    from staghunt.plots.animation import flight_animation
+    from staghunt.plots.flight import flight_figures
+    from staghunt.plots.replay import write_replay_html
+
+    out = Path(out_dir)
+    data = flight_dict(result)
+    files = flight_figures(data, out)
+    files.append(flight_animation(data, out / "flight.gif"))
+    write_replay_html(out / "replay.html", data)
+    return files + [out / "replay.html"]
