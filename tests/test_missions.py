@@ -25,6 +25,7 @@ from staghunt.missions.formats import LITCHI_HEADER
 from staghunt.scenario import load_scenario
 from staghunt.task import VehicleLimits
 from staghunt.trajectory import check_in_time, time_plan
+from staghunt.trajectory.timing import merge_waypoints
 from staghunt.world import GeoOrigin
 
 TOL = 0.5  # metres: points read back must match the plan within this
@@ -48,6 +49,11 @@ def exported(planned, tmp_path_factory):
     out = tmp_path_factory.mktemp("mission")
     report = export_result(str(path), str(out), plots=False)
     return out, report
+
+
+def _flown(result):
+    """``(N, M, 3)``: the plan's points the mission flies (near-duplicate waypoints merged)."""
+    return result.paths[:, merge_waypoints(result.paths)]
 
 
 def _site(scenario, lat, lon, alt):
@@ -74,12 +80,12 @@ def test_trajectories_share_waypoint_times_and_keep_the_limits(planned):
     scenario, result, _ = planned
     traj = time_plan(result.paths, scenario.vehicle)
     pos = np.moveaxis(traj.spline(traj.times), 0, 1)
-    np.testing.assert_allclose(pos, result.paths, atol=1e-9)  # k-th points at the common time t_k
+    np.testing.assert_allclose(pos, _flown(result), atol=1e-9)  # k-th points at the common time t_k
     np.testing.assert_allclose(np.moveaxis(traj.spline(traj.times[[0, -1]], 1), 0, 1), 0.0, atol=1e-9)
     t = np.linspace(0, traj.duration, 20001)
     v = np.linalg.norm(traj.spline(t, 1), axis=-1)
     a = np.linalg.norm(traj.spline(t, 2), axis=-1)
-    assert v.max() <= scenario.vehicle.max_speed and a.max() <= scenario.vehicle.max_acceleration
+    assert v.max() <= scenario.vehicle.cruise_speed and a.max() <= scenario.vehicle.max_acceleration
     # continuous velocity and acceleration at the knots
     for tk in traj.times[1:-1]:
         for d in (1, 2):
@@ -137,7 +143,7 @@ def test_waypoints_file_read_by_pymavlink(planned, exported):
     for n in range(3):
         loader = mavwp.MAVWPLoader()
         count = loader.load(str(out / f"uav{n + 1}.waypoints"))
-        K2 = result.paths.shape[1]
+        K2 = _flown(result).shape[1]
         assert count == 1 + 1 + 2 * (K2 - 1)  # home, takeoff, (speed, waypoint) per leg
         items = [loader.wp(i) for i in range(count)]
         home = items[0]
@@ -145,7 +151,7 @@ def test_waypoints_file_read_by_pymavlink(planned, exported):
         nav = [w for w in items[1:] if w.command in (16, 22)]
         assert all(w.frame == 3 for w in nav)
         back = _site(scenario, [w.x for w in nav], [w.y for w in nav], [home.z + w.z for w in nav])
-        np.testing.assert_allclose(back, result.paths[n], atol=TOL)
+        np.testing.assert_allclose(back, _flown(result)[n], atol=TOL)
         speeds = [w.param2 for w in items if w.command == 178]
         assert len(speeds) == K2 - 1 and max(speeds) <= scenario.vehicle.max_speed
 
@@ -175,7 +181,7 @@ def test_plan_file_has_every_field_qgroundcontrol_reads(planned, exported):
                 nav.append(item["params"][4:])
         nav = np.array(nav)
         back = _site(scenario, nav[:, 0], nav[:, 1], home[2] + nav[:, 2])
-        np.testing.assert_allclose(back, result.paths[n], atol=TOL)
+        np.testing.assert_allclose(back, _flown(result)[n], atol=TOL)
 
 
 def test_kml_valid_against_the_kml_schema_and_read_by_fastkml(planned, exported):
@@ -192,7 +198,7 @@ def test_kml_valid_against_the_kml_schema_and_read_by_fastkml(planned, exported)
     assert [p.name for p in marks] == result.uav_names
     for n, p in enumerate(marks):
         lon, lat, alt = np.array(list(p.geometry.coords)).T
-        want = result.paths[n]
+        want = _flown(result)[n]
         # fastkml's geometry drops a point that repeats the previous one (a UAV holding still)
         keep = np.r_[True, np.linalg.norm(np.diff(want, axis=0), axis=1) > 1e-3]
         np.testing.assert_allclose(_site(scenario, lat, lon, alt), want[keep], atol=TOL)
@@ -208,7 +214,7 @@ def test_geojson_valid_and_read_by_geojson(planned, exported):
     for n, f in enumerate(fc["features"]):
         assert f["geometry"]["type"] == "LineString"
         lon, lat, alt = np.array(f["geometry"]["coordinates"]).T
-        np.testing.assert_allclose(_site(scenario, lat, lon, alt), result.paths[n], atol=TOL)
+        np.testing.assert_allclose(_site(scenario, lat, lon, alt), _flown(result)[n], atol=TOL)
 
 
 DJI_MISSION_CONFIG = ("flyToWaylineMode", "finishAction", "exitOnRCLost", "executeRCLostAction",
@@ -236,7 +242,7 @@ def test_dji_kmz_has_the_required_wpml_fields(planned, exported):
         folder = waylines.find(f"{KML}Document/{KML}Folder")
         assert folder.find(f"{WPML}executeHeightMode").text == "relativeToStartPoint"
         marks = folder.findall(f"{KML}Placemark")
-        assert [int(m.find(f"{WPML}index").text) for m in marks] == list(range(result.paths.shape[1]))
+        assert [int(m.find(f"{WPML}index").text) for m in marks] == list(range(_flown(result).shape[1]))
         for m in marks:
             for key in DJI_WAYLINE_PLACEMARK:
                 assert m.find(f"{WPML}{key}") is not None, key
@@ -247,7 +253,7 @@ def test_dji_kmz_has_the_required_wpml_fields(planned, exported):
             lon, lat = (float(v) for v in m.find(f"{KML}Point/{KML}coordinates").text.split(","))
             pts.append((lat, lon, ref[2] + float(m.find(f"{WPML}executeHeight").text)))
         pts = np.array(pts)
-        np.testing.assert_allclose(_site(scenario, pts[:, 0], pts[:, 1], pts[:, 2]), result.paths[n], atol=TOL)
+        np.testing.assert_allclose(_site(scenario, pts[:, 0], pts[:, 1], pts[:, 2]), _flown(result)[n], atol=TOL)
 
 
 def test_litchi_csv_has_the_documented_header(planned, exported):
@@ -256,7 +262,7 @@ def test_litchi_csv_has_the_documented_header(planned, exported):
     rows = list(csv.reader((out / "uav1.litchi.csv").open()))
     assert rows[0] == LITCHI_HEADER and len(rows[0]) == 46
     body = rows[1:]
-    assert len(body) == result.paths.shape[1]
+    assert len(body) == _flown(result).shape[1]
     col = {name: i for i, name in enumerate(rows[0])}
     assert all(r[col["altitudemode"]] == "0" and 0 <= float(r[col["speed(m/s)"]]) <= 15 for r in body)
     assert all(float(r[col["altitude(m)"]]) >= 0 for r in body)

@@ -1,7 +1,8 @@
 """``staghunt export``: the mission files of a plan (parse, call :mod:`staghunt.missions`, report).
 
-Exit codes: ``0`` written; ``3`` refused: the plan is infeasible or its timed trajectories break a
-limit (``--force`` writes them anyway, marked unsafe); ``2`` bad input; ``130`` interrupted.
+Exit codes: ``0`` written; ``3`` refused: the plan is infeasible, its timed trajectories break a
+limit, or (``--simulate``) so does their simulated flight (``--force`` writes them anyway, marked
+unsafe); ``2`` bad input; ``130`` interrupted.
 """
 
 from __future__ import annotations
@@ -55,8 +56,8 @@ def add_commands(sub: Any) -> None:
         "uav{n}.kmz (DJI WPML), uav{n}.litchi.csv (Litchi), mission.kml, mission.geojson, "
         "trajectories.csv, mission.json (timing, datums, minima), speed.png and separation.png. "
         "docs/missions.md says how to load each.",
-        epilog="Exit codes: 0 written, 3 refused (infeasible or unsafe plan; --force writes it "
-        "marked unsafe), 2 bad input, 130 interrupted.",
+        epilog="Exit codes: 0 written, 3 refused (infeasible plan, or unsafe in time or in the "
+        "simulated flight; --force writes it marked unsafe), 2 bad input, 130 interrupted.",
     )
     p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
     p.add_argument("--out", metavar="DIR", required=True, help="output directory")
@@ -67,27 +68,47 @@ def add_commands(sub: Any) -> None:
                    help=f"comma-separated formats (default: all: {','.join(FORMATS)})")
     p.add_argument("--force", action="store_true", help="export an infeasible or unsafe plan, marked as such")
     p.add_argument("--no-plots", action="store_true", help="do not draw speed.png and separation.png")
+    p.add_argument("--simulate", action="store_true",
+                   help="first fly trajectories.csv with simulated multirotors (rotorpy, 100 Hz, no wind) "
+                   "and report tracking error, separation and clearance in flight in mission.json; a "
+                   "flight that breaks a limit is refused like an unsafe plan (exit 3 unless --force)")
 
 
 def cmd_export(args: argparse.Namespace) -> int:
     from staghunt.missions import export_result
     from staghunt.missions.export import ExportRefused
 
+    def progress(t: float, t_end: float) -> None:
+        if sys.stderr.isatty():
+            sys.stderr.write(f"\r{PROG}: flying the mission in simulation, t = {t:5.1f} of {t_end:.1f} s ")
+            sys.stderr.flush()
+
     try:
         report = export_result(args.result, args.out, origin=args.origin, formats=args.formats,
-                               force=args.force, plots=not args.no_plots)
+                               force=args.force, plots=not args.no_plots, simulate=args.simulate,
+                               progress=progress)
     except ExportRefused as exc:
         error(one_line(exc))
         return EXIT_NEGATIVE
     s = report.safety
-    print(f"mission: {report.duration:.1f} s, waypoint times shared by the team; max speed "
-          f"{max(report.max_speed):.2f} m/s, max acceleration {max(report.max_acceleration):.2f} m/s^2"
-          + (f" (slowed {report.stretch:.2f}x to meet the limits)" if report.stretch > 1 else ""))
+    print(f"mission: {report.duration:.1f} s ({report.duration / report.bound:.2f} x the bound "
+          f"max L / cruise + cruise / max acceleration = {report.bound:.1f} s), waypoint times shared "
+          f"by the team; max speed {max(report.max_speed):.2f} m/s, max acceleration "
+          f"{max(report.max_acceleration):.2f} m/s^2"
+          + (f"; {report.merged} near-duplicate waypoint(s) merged" if report.merged else ""))
     print(f"in time ({s.times} samples, step {s.step:.3f} s): min separation {min(s.min_separation):.2f} m "
           f"(limit {max(s.separation_limit):g}), min clearance {min(s.min_clearance):.2f} m "
           f"(required {s.required_clearance:g}), min height {min(s.min_height):.2f} m")
     for note in s.notes[:3]:
         print(f"note: {note}")
+    f = report.flight
+    if f is not None:
+        if sys.stderr.isatty():
+            sys.stderr.write("\n")
+        print(f"in flight (simulated, {f.sim_rate:g} Hz, {f.seconds:.0f} s): tracking RMS "
+              f"{f.tracking_rms.max():.3f} m (max {f.tracking_max.max():.3f} m), min separation "
+              f"{f.min_separation.min():.2f} m (limit {f.separation_limit.max():g}), min clearance "
+              f"{f.min_clearance.min():.2f} m (required {f.required_clearance:g})")
     if report.warnings:
         print(f"{PROG}: warning: exported with --force although: {report.warnings[0]}", file=sys.stderr)
     print(f"origin {report.origin.latitude:.6f}, {report.origin.longitude:.6f}, {report.origin.altitude:g} m AMSL; "

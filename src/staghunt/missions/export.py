@@ -1,14 +1,17 @@
 """``staghunt export``: every mission file of a plan, built in memory, then written atomically.
 
 Nothing is written unless every file could be built; each file is replaced atomically. An
-infeasible plan, or trajectories that break a limit in time, are refused unless ``force``; then
-every file that has a place for it says so, and ``MISSION_UNSAFE.txt`` lists why.
+infeasible plan, trajectories that break a limit in time, or (with ``simulate``) a simulated
+flight that does, are refused unless ``force``; then every file that has a place for it says
+so, and ``MISSION_UNSAFE.txt`` lists why.
 """
 
 from __future__ import annotations
 
 import json
+import math
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -16,10 +19,11 @@ from typing import Any
 import numpy as np
 
 from staghunt.costs import CostModel
+from staghunt.flight.mission import MissionFlight, fly_mission, read_trajectories_csv
 from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
 from staghunt.io.atomic import atomic_file, check_replaceable, write_text_atomic
 from staghunt.missions import formats as fm
-from staghunt.trajectory import SafetyReport, Trajectories, check_in_time, time_plan
+from staghunt.trajectory import SafetyReport, Trajectories, time_and_check
 
 FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories")
 """``plan`` (QGroundControl), ``waypoints`` (QGC WPL 110), ``kmz`` (DJI WPML), ``litchi``
@@ -33,7 +37,9 @@ class ExportRefused(ValueError):
 @dataclass(frozen=True)
 class ExportReport:
     """What was written: ``files``; the timing (``duration`` s, ``stretch``, per UAV
-    ``max_speed``, ``max_acceleration``); the in-time ``safety``; ``seconds`` spent."""
+    ``max_speed``, ``max_acceleration``, the reference duration ``bound`` s and the number of
+    ``merged`` waypoint indices); the in-time ``safety``; the simulated ``flight`` (with
+    ``--simulate``); ``seconds`` spent."""
 
     files: tuple[Path, ...]
     origin: GeoOrigin
@@ -42,6 +48,9 @@ class ExportReport:
     max_speed: tuple[float, ...]
     max_acceleration: tuple[float, ...]
     safety: SafetyReport
+    bound: float = math.nan
+    merged: int = 0
+    flight: MissionFlight | None = None
     warnings: tuple[str, ...] = field(default=())
     seconds: float = 0.0
 
@@ -58,12 +67,16 @@ def _parse_formats(formats: Any) -> tuple[str, ...]:
 
 def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = None,
                   formats: Any = None, force: bool = False, plots: bool = True,
-                  data: dict[str, Any] | None = None) -> ExportReport:
+                  data: dict[str, Any] | None = None, simulate: bool = False,
+                  progress: Callable[[float, float], None] | None = None) -> ExportReport:
     """Export the plan of ``result_path`` (a ``result.json``) to ``out_dir``.
 
     ``origin``: the site frame's geodetic origin (default: the scenario's; one of them is
-    needed). Raises ``ValueError`` with one line for bad input, :class:`ExportRefused` for an
-    infeasible or unsafe plan without ``force``."""
+    needed). ``simulate``: fly ``trajectories.csv`` with the simulated vehicles first
+    (:func:`staghunt.flight.mission.fly_mission`; ``progress(t, t_end)`` about once per simulated
+    second); a flight that breaks a limit is unsafe like a plan that does. Raises ``ValueError``
+    with one line for bad input, :class:`ExportRefused` for an infeasible or unsafe plan
+    without ``force``."""
     from staghunt.analysis.certify import plan_from_result_data
     from staghunt.io.result_json import read_result
 
@@ -84,12 +97,18 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     paths = np.array([u["path"] for u in data["uavs"]], dtype=float)  # (N, K + 2, 3) absolute
     names = [u.name for u in scenario.team]
     model = CostModel.from_scenario(scenario)
-    traj = time_plan(paths, scenario.vehicle)
-    safety = check_in_time(model, traj, names)
+    traj, safety = time_and_check(model, paths, scenario.vehicle, names)
     problems = []
     if data.get("status") != "feasible":
         problems.append(f"the plan is {data.get('status')!r}: {data.get('message', '')}")
     problems += list(safety.problems)
+    flight = None
+    if simulate:
+        t = traj.grid()
+        pos, vel = traj.sample(t)
+        flight = fly_mission(scenario, *read_trajectories_csv(fm.trajectories_csv(t, pos, vel)),
+                             progress=progress)
+        problems += list(flight.problems)
     if problems and not force:
         raise ExportRefused(f"{result_path}: not exported: {problems[0]}"
                             + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
@@ -100,6 +119,8 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
         files["MISSION_UNSAFE.txt"] = "This mission was exported with --force although:\n" + \
             "\n".join(f"- {p}" for p in problems) + "\nDo not fly it as it is.\n"
     summary = _summary(data, origin, traj, safety, problems, names)
+    if flight is not None:
+        summary["flight"] = _flight_summary(flight, names)
     files["mission.json"] = json.dumps(summary, indent=1) + "\n"
     try:
         out.mkdir(parents=True, exist_ok=True)
@@ -123,7 +144,7 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     return ExportReport(files=tuple(written), origin=origin, duration=traj.duration, stretch=traj.stretch,
                         max_speed=tuple(float(v) for v in traj.max_speed),
                         max_acceleration=tuple(float(v) for v in traj.max_acceleration),
-                        safety=safety, warnings=tuple(problems), seconds=time.perf_counter() - t0)
+                        safety=safety, bound=traj.bound, merged=traj.merged, flight=flight, warnings=tuple(problems), seconds=time.perf_counter() - t0)
 
 
 def _build(scenario: Any, model: CostModel, traj: Trajectories, origin: GeoOrigin,
@@ -172,6 +193,11 @@ def _summary(data: dict[str, Any], origin: GeoOrigin, traj: Trajectories, safety
             "trajectories": "site frame z (absolute; AMSL = origin altitude + z)",
         },
         "duration_s": traj.duration, "stretch": traj.stretch,
+        "timing": {"method": "time-optimal (TOPP-RA), one path parameter for the team",
+                   "duration_bound_s": traj.bound, "duration_over_bound": traj.duration / traj.bound,
+                   "sub_leg_m": None if math.isinf(traj.spacing) else traj.spacing,
+                   "merged_waypoints": traj.merged,
+                   "plan_index": [int(k) for k in traj.kept]},
         "waypoint_times_s": [float(t) for t in traj.times],
         "max_speed_m_s": dict(zip(names, (float(v) for v in traj.max_speed))),
         "max_acceleration_m_s2": dict(zip(names, (float(v) for v in traj.max_acceleration))),
@@ -183,4 +209,18 @@ def _summary(data: dict[str, Any], origin: GeoOrigin, traj: Trajectories, safety
                     "min_height_m": dict(zip(names, safety.min_height)),
                     "notes": list(safety.notes)},
         "safe": not problems, "problems": problems,
+    }
+
+
+def _flight_summary(flight: MissionFlight, names: list[str]) -> dict[str, Any]:
+    """``mission.json``'s ``flight`` block: the simulated flight of ``trajectories.csv``."""
+    per = lambda a: dict(zip(names, (float(v) for v in a)))  # noqa: E731
+    return {
+        "simulator": "rotorpy Multirotor (Hummingbird parameters) with rotorpy's SE3Control, no wind",
+        "rate_hz": flight.sim_rate, "flown": "trajectories.csv (cubic Hermite through its samples)",
+        "tracking_rms_m": per(flight.tracking_rms), "tracking_max_m": per(flight.tracking_max),
+        "min_separation_m": per(flight.min_separation), "separation_limit_m": per(flight.separation_limit),
+        "min_clearance_m": per(flight.min_clearance), "required_clearance_m": flight.required_clearance,
+        "min_height_m": per(flight.min_height), "max_altitude_m": per(flight.max_altitude),
+        "safe": flight.safe, "problems": list(flight.problems), "seconds": flight.seconds,
     }

@@ -1,24 +1,15 @@
 """Timed, synchronised trajectories of a plan, and their safety checked in time.
 
-Every UAV flies a cubic spline through all its planned points (start, the ``K`` free waypoints,
-goal; absolute site coordinates) with **common waypoint times**: the formation cost is defined
-per waypoint index, so the ``k``-th waypoints are reached together, all UAVs leave together and
-arrive together. The spline (:class:`scipy.interpolate.CubicSpline`, clamped: zero velocity at
-both ends) has continuous velocity and acceleration. Timing:
-
-1. each leg ``k`` first gets the time the slowest UAV needs for it at the cruise speed (its
-   longest segment / ``cruise_speed``; at least :data:`MIN_LEG_S`);
-2. the whole schedule is then stretched by one factor ``s >= 1`` so that no UAV exceeds
-   ``max_speed`` or ``max_acceleration`` anywhere: stretching time by ``s`` divides every
-   velocity by ``s`` and every acceleration by ``s^2`` (the spline's shape is unchanged), so a
-   limit the plan cannot meet is met by slowing down, never by exceeding it. The acceleration of
-   a cubic spline is linear between knots, so its maximum is taken at the knots exactly; speed
-   is checked on a 2 ms grid, and a margin of :data:`MARGIN` is kept.
-
-Why scipy's splines and not a minimum-snap or time-optimal library: the team must share its
-waypoint times, which minimum-snap packages (minsnap-trajectories) and TOPP-RA (toppra) time per
-vehicle; a common clamped cubic spline per UAV with one global retiming gives C2 trajectories
-that meet the limits exactly by construction, with a dependency the project already has.
+The team flies its planned points (start, the ``K`` free waypoints, goal; absolute site
+coordinates) with **common waypoint times**: the formation cost is defined per waypoint index,
+so the ``k``-th waypoints are reached together, all UAVs leave together and arrive together.
+:func:`time_plan` merges near-duplicate waypoints for the whole team and times the team's
+paths time-optimally under every UAV's speed (``cruise_speed``) and acceleration
+(``max_acceleration``) norms with one path parameter (:mod:`staghunt.trajectory.timing`,
+TOPP-RA). :func:`time_and_check` picks the smoothest geometric path whose flight in time is
+safe: smooth curves through the waypoints are fastest, but may cut a corner closer to an
+obstacle than the planned polyline; splitting the legs into shorter sub-legs keeps the curve
+closer to the polyline at the price of slower turns.
 
 :func:`check_in_time` samples the trajectories on one time grid (step <= 0.1 s) and checks, at
 the same instant, the distance between UAVs against ``d_s + 2 r``, the obstacle clearance
@@ -37,36 +28,52 @@ from scipy.interpolate import CubicSpline
 from staghunt.checks import outside_site, plan_metrics, violations
 from staghunt.costs import CostModel
 from staghunt.task import VehicleLimits
+from staghunt.trajectory import timing as tm
 
-MIN_LEG_S = 0.2
-"""Shortest leg (s): legs where no UAV moves still take this long (the spline needs rising times)."""
 MARGIN = 1e-3
 """Relative margin kept below the speed and acceleration limits."""
 SAMPLE_S = 0.1
 """Largest step of the time grid of the checks and of ``trajectories.csv``."""
+SPACINGS = (math.inf, 10.0, 4.0, 1.5)
+"""Sub-leg lengths (m) :func:`time_and_check` tries, smoothest first (``inf``: the waypoints only)."""
 
 
 @dataclass(frozen=True, eq=False)
 class Trajectories:
-    """Timed trajectories of ``N`` UAVs through ``M = K + 2`` points each.
+    """Timed trajectories of ``N`` UAVs through ``M`` points each (the plan's ``K + 2`` points
+    after merging near-duplicates).
 
     - ``times``: ``(M,)`` common waypoint times (s), ``times[0] = 0``.
     - ``points``: ``(N, M, 3)`` absolute site ``(x, y, z)``.
-    - ``spline``: one :class:`CubicSpline` over ``times`` with values ``(N, 3)`` per time.
+    - ``kept``: ``(M,)`` the index in the plan of each point (merged ones are missing).
+    - ``spline``: one clamped :class:`CubicSpline` in time with values ``(N, 3)`` per time.
     - ``max_speed``, ``max_acceleration``: ``(N,)`` the largest found (m/s, m/s^2).
-    - ``stretch``: the factor the cruise-speed schedule was slowed by to meet the limits (1 = none).
+    - ``stretch``: the factor the time-optimal schedule was slowed by to meet the limits
+      between TOPP-RA's grid points (1 = none).
+    - ``spacing``: the longest sub-leg of the geometric path (m; ``inf``: through the
+      waypoints only).
+    - ``bound``: ``max_n L_n / cruise_speed + cruise_speed / max_acceleration`` (s), ``L_n``
+      the length of UAV ``n``'s planned polyline: a reference a mission cannot beat by much.
     """
 
     times: np.ndarray
     points: np.ndarray
+    kept: np.ndarray
     spline: CubicSpline
     max_speed: np.ndarray
     max_acceleration: np.ndarray
     stretch: float
+    spacing: float
+    bound: float
 
     @property
     def duration(self) -> float:
         return float(self.times[-1])
+
+    @property
+    def merged(self) -> int:
+        """How many of the plan's waypoint indices were merged into their neighbours."""
+        return int(self.kept[-1] + 1 - len(self.kept))
 
     def grid(self, step: float = SAMPLE_S) -> np.ndarray:
         """``(T,)`` times from 0 to arrival with a step of at most ``step``."""
@@ -85,42 +92,73 @@ class Trajectories:
         return seg / np.diff(self.times)[None]
 
 
-def _spline(times: np.ndarray, points: np.ndarray) -> CubicSpline:
-    return CubicSpline(times, np.moveaxis(points, 0, 1), axis=0, bc_type="clamped")
-
-
-def _peaks(spline: CubicSpline, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(N,)`` largest speed (2 ms grid and knots) and acceleration (at the knots, exact)."""
-    fine = np.union1d(np.arange(0.0, times[-1], 0.002), times)
+def _peaks(spline: CubicSpline) -> tuple[np.ndarray, np.ndarray]:
+    """``(N,)`` largest speed (2 ms grid and knots) and acceleration (at the knots: exact, a
+    cubic's acceleration is linear between them)."""
+    knots = spline.x
+    fine = np.union1d(np.arange(0.0, knots[-1], 0.002), knots)
     speed = np.linalg.norm(spline(fine, 1), axis=-1).max(axis=0)
-    acc = np.linalg.norm(spline(times, 2), axis=-1).max(axis=0)
+    acc = np.linalg.norm(spline(knots, 2), axis=-1).max(axis=0)
     return speed, acc
 
 
-def time_plan(points: np.ndarray, limits: VehicleLimits) -> Trajectories:
-    """Time the team's paths ``points`` ``(N, M, 3)`` (absolute site coordinates) within ``limits``."""
-    p = np.asarray(points, dtype=float)
-    if p.ndim != 3 or p.shape[2] != 3 or p.shape[1] < 2:
-        raise ValueError(f"points must be (N, M, 3) with M >= 2, got {p.shape}")
+def _check_limits(limits: VehicleLimits) -> None:
     for name in ("max_speed", "max_acceleration", "cruise_speed"):
         v = getattr(limits, name)
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
             raise ValueError(f"vehicle.{name} must be a finite number > 0, got {v!r}")
-    legs = np.linalg.norm(np.diff(p, axis=1), axis=-1).max(axis=0)  # (M - 1,) slowest UAV's leg
-    dt = np.maximum(legs / min(limits.cruise_speed, limits.max_speed), MIN_LEG_S)
-    times = np.concatenate([[0.0], np.cumsum(dt)])
-    spline = _spline(times, p)
-    speed, acc = _peaks(spline, times)
-    stretch = max(1.0, float(speed.max()) / limits.max_speed,
+
+
+def time_plan(points: np.ndarray, limits: VehicleLimits, spacing: float = math.inf) -> Trajectories:
+    """Time the team's paths ``points`` ``(N, M, 3)`` (absolute site coordinates) within
+    ``limits``: speed <= ``min(cruise_speed, max_speed)`` and acceleration <=
+    ``max_acceleration`` as norms, time-optimal for the common path (module docstring).
+    ``spacing``: split every leg into sub-legs of at most this length first (m)."""
+    p = np.asarray(points, dtype=float)
+    if p.ndim != 3 or p.shape[2] != 3 or p.shape[1] < 2 or not np.all(np.isfinite(p)):
+        raise ValueError(f"points must be finite (N, M, 3) with M >= 2, got shape {p.shape}")
+    _check_limits(limits)
+    if not (spacing > 0):
+        raise ValueError(f"spacing must be > 0, got {spacing!r}")
+    v_max = min(limits.cruise_speed, limits.max_speed)
+    lengths = np.linalg.norm(np.diff(p, axis=1), axis=-1).sum(axis=1)  # (N,)
+    bound = float(lengths.max()) / v_max + v_max / limits.max_acceleration
+    kept = tm.merge_waypoints(p)
+    wp = p[:, kept]
+    if len(kept) < 2 or float(tm.team_chord(wp)[-1]) <= 0.0:  # nobody moves: hold
+        times = tm.hold_times()
+        wp = p[:, [0, -1]]
+        kept = np.array([0, p.shape[1] - 1])
+        spline = tm.team_spline(times, np.moveaxis(wp, 0, 1))
+        zero = np.zeros(p.shape[0])
+        return Trajectories(times=times, points=wp, kept=kept, spline=spline, max_speed=zero,
+                            max_acceleration=zero, stretch=1.0, spacing=spacing, bound=bound)
+    dense, index = (wp, np.arange(wp.shape[1])) if math.isinf(spacing) else tm.split_legs(wp, spacing)
+    t, q, at = tm.parameterise(dense, v_max, limits.max_acceleration)
+    spline = tm.team_spline(t, q)
+    speed, acc = _peaks(spline)
+    stretch = max(1.0, float(speed.max()) / v_max,
                   math.sqrt(float(acc.max()) / limits.max_acceleration)) * (1.0 + MARGIN)
     if stretch > 1.0 + MARGIN:
-        times = times * stretch
-        spline = _spline(times, p)
-        speed, acc = _peaks(spline, times)
+        t = t * stretch
+        spline = tm.team_spline(t, q)
+        speed, acc = _peaks(spline)
     else:
         stretch = 1.0
-    return Trajectories(times=times, points=p, spline=spline, max_speed=speed,
-                        max_acceleration=acc, stretch=stretch)
+    return Trajectories(times=t[at[index]], points=wp, kept=kept, spline=spline, max_speed=speed,
+                        max_acceleration=acc, stretch=stretch, spacing=spacing, bound=bound)
+
+
+def time_and_check(model: CostModel, points: np.ndarray, limits: VehicleLimits,
+                   names: list[str]) -> tuple[Trajectories, SafetyReport]:
+    """The smoothest timing of :data:`SPACINGS` whose flight in time is safe, with its report;
+    if none is, the last (closest to the polyline) with its problems."""
+    for spacing in SPACINGS:
+        traj = time_plan(points, limits, spacing)
+        safety = check_in_time(model, traj, names)
+        if safety.safe:
+            break
+    return traj, safety
 
 
 @dataclass(frozen=True)

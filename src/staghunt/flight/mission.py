@@ -1,0 +1,166 @@
+"""An exported mission flown open loop by the simulated vehicles (``staghunt export --simulate``).
+
+The in-time check of an export samples the reference trajectories; this module flies them. The
+reference is what ``trajectories.csv`` holds (time, position and velocity of every UAV on one
+grid): every UAV follows the cubic Hermite curve through its samples (positions and velocities
+exactly as written; acceleration and jerk its derivatives) with the simulated multirotor of the
+closed loop (:class:`~staghunt.flight.vehicles.SimulatedTeam`: rotorpy's Hummingbird and SE(3)
+controller at ``sim_rate`` Hz), from rest at the first sample, then holds the last sample for
+``hold`` seconds. Nothing re-plans: the world is the scenario's static one (cylinders, prisms,
+no-fly zones, ceiling, terrain), as in the export's in-time check.
+
+The flown states are judged like the closed loop's: least separation against ``d_s + 2 r``,
+least clearance against the scenario's hard clearance, height above the ground and below the
+ceiling, and tracking error (RMS and maximum) against the reference.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline
+
+from staghunt.flight.safety import separations, static_clearance
+from staghunt.flight.vehicles import SimulatedTeam
+from staghunt.scenario import Scenario
+
+SIM_RATE = 100.0
+"""Simulation rate (Hz)."""
+RECORD_STEP = 5
+"""Simulation steps between recorded states (every 0.05 s at 100 Hz)."""
+HOLD_S = 2.0
+"""Time (s) the vehicles hold the last sample before the flight is judged complete."""
+
+
+@dataclass(frozen=True, eq=False)
+class MissionFlight:
+    """The simulated flight of a mission of ``N`` UAVs, recorded at ``T`` instants.
+
+    - ``times``: ``(T,)`` s; ``actual``, ``reference``: ``(N, T, 3)`` site positions.
+    - ``tracking_rms``, ``tracking_max``: ``(N,)`` |actual - reference| (m).
+    - ``min_separation``: ``(N,)`` least distance to a team-mate at the same instant;
+      ``separation_limit``: ``(N,)`` ``d_s + 2 r``.
+    - ``min_clearance``: ``(N,)`` least clearance to the obstacles; ``required_clearance``.
+    - ``min_height``: ``(N,)`` least height above the ground; ``max_altitude``: ``(N,)``
+      highest site ``z`` (against the ceiling).
+    - ``problems``: the limits the flight broke (empty: none); ``seconds``: wall time.
+    """
+
+    times: np.ndarray
+    actual: np.ndarray
+    reference: np.ndarray
+    tracking_rms: np.ndarray
+    tracking_max: np.ndarray
+    min_separation: np.ndarray
+    separation_limit: np.ndarray
+    min_clearance: np.ndarray
+    required_clearance: float
+    min_height: np.ndarray
+    max_altitude: np.ndarray
+    problems: tuple[str, ...]
+    sim_rate: float
+    seconds: float
+
+    @property
+    def safe(self) -> bool:
+        return not self.problems
+
+
+def read_trajectories_csv(text: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``t`` ``(T,)``, positions and velocities ``(N, T, 3)`` from the text of a
+    ``trajectories.csv`` (``t,uav,x,y,z,vx,vy,vz``, all UAVs on one grid). Raises
+    ``ValueError`` for a file that is not one."""
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows or rows[0] != ["t", "uav", "x", "y", "z", "vx", "vy", "vz"]:
+        raise ValueError("trajectories.csv: the header must be t,uav,x,y,z,vx,vy,vz")
+    try:
+        data = np.array(rows[1:], dtype=float)
+    except ValueError:
+        raise ValueError("trajectories.csv: every field must be a number") from None
+    if data.ndim != 2 or data.shape[0] == 0 or not np.all(np.isfinite(data)):
+        raise ValueError("trajectories.csv: no rows, or a field that is not finite")
+    n = int(data[:, 1].max())
+    if data.shape[0] % n or not np.array_equal(data[:, 1], np.tile(np.arange(1, n + 1), data.shape[0] // n)):
+        raise ValueError("trajectories.csv: every instant must list UAVs 1..N in order")
+    block = data.reshape(-1, n, 8)  # (T, N, 8)
+    t = block[:, 0, 0]
+    if np.any(np.diff(t) <= 0) or np.any(block[:, :, 0] != t[:, None]):
+        raise ValueError("trajectories.csv: the times must rise and be shared by the UAVs")
+    return t, np.moveaxis(block[:, :, 2:5], 0, 1), np.moveaxis(block[:, :, 5:8], 0, 1)
+
+
+def fly_mission(scenario: Scenario, t: np.ndarray, pos: np.ndarray, vel: np.ndarray,
+                sim_rate: float = SIM_RATE, hold: float = HOLD_S,
+                progress: Callable[[float, float], None] | None = None) -> MissionFlight:
+    """Fly the sampled trajectories ``pos``, ``vel`` ``(N, T, 3)`` at times ``t`` ``(T,)``
+    (site frame, absolute) with the simulated team and judge the flight (module docstring).
+    ``progress(t, t_end)`` is called about once per simulated second."""
+    t0 = time.perf_counter()
+    curve = CubicHermiteSpline(t, pos, vel, axis=1)
+    dt = 1.0 / sim_rate
+    t_end = float(t[-1]) + hold
+    steps = math.ceil((t_end - t[0]) / dt)
+    team = SimulatedTeam(pos[:, 0], dt, None)
+    rec_t: list[float] = []
+    rec_x: list[np.ndarray] = []
+    rec_r: list[np.ndarray] = []
+    last = np.stack([pos[:, -1], np.zeros_like(pos[:, -1]), np.zeros_like(pos[:, -1]),
+                     np.zeros_like(pos[:, -1])])
+    per_second = max(1, round(sim_rate))
+    for k in range(steps + 1):
+        tk = float(t[0]) + k * dt
+        if tk <= t[-1]:
+            ref = np.stack([curve(tk, d) for d in range(4)])  # (4, N, 3)
+        else:
+            ref = last
+        if k % RECORD_STEP == 0:
+            rec_t.append(tk)
+            rec_x.append(team.positions())
+            rec_r.append(ref[0])
+        if k < steps:
+            team.step(tk, ref)
+        if progress is not None and k % per_second == 0:
+            progress(tk, t_end)
+    times = np.asarray(rec_t)
+    actual = np.stack(rec_x, axis=1)  # (N, T, 3)
+    reference = np.stack(rec_r, axis=1)
+    return judge_mission(scenario, times, actual, reference, sim_rate, time.perf_counter() - t0)
+
+
+def judge_mission(scenario: Scenario, times: np.ndarray, actual: np.ndarray, reference: np.ndarray,
+                  sim_rate: float = SIM_RATE, seconds: float = 0.0) -> MissionFlight:
+    """Judge flown positions ``actual`` against ``reference`` ``(N, T, 3)`` (module docstring)."""
+    world = scenario.world
+    radius = np.array([u.radius for u in scenario.team])
+    limit = scenario.costs.safe_distance + 2.0 * radius
+    required = float(scenario.costs.min_clearance)
+    err = np.linalg.norm(actual - reference, axis=-1)
+    sep = separations(actual).min(axis=1)
+    clear = static_clearance(world.cylinders, world.prisms, actual, radius).min(axis=1)
+    height = (actual[..., 2] - world.terrain.height(actual[..., 0], actual[..., 1])).min(axis=1)
+    top = actual[..., 2].max(axis=1)
+    names = [u.name for u in scenario.team]
+    problems = []
+    for n, name in enumerate(names):
+        if sep[n] <= limit[n]:
+            problems.append(f"in flight: {name} came within {sep[n]:.2f} m of a team-mate "
+                            f"(limit d_s + 2r = {limit[n]:g} m)")
+        if clear[n] < required:
+            problems.append(f"in flight: {name}'s clearance to an obstacle fell to {clear[n]:.2f} m "
+                            f"(required {required:g} m)")
+        if height[n] <= 0.0:
+            problems.append(f"in flight: {name} touched the ground ({height[n]:.2f} m)")
+        if top[n] > world.ceiling:
+            problems.append(f"in flight: {name} rose to {top[n]:.2f} m, above the ceiling {world.ceiling:g} m")
+    return MissionFlight(
+        times=times, actual=actual, reference=reference,
+        tracking_rms=np.sqrt(np.mean(err ** 2, axis=1)), tracking_max=err.max(axis=1),
+        min_separation=sep, separation_limit=limit, min_clearance=clear, required_clearance=required,
+        min_height=height, max_altitude=top, problems=tuple(problems), sim_rate=float(sim_rate),
+        seconds=float(seconds))

@@ -1,0 +1,114 @@
+"""Time-optimal synchronised timing (:mod:`staghunt.trajectory.timing`): hand-computed bounds,
+limits as norms on a fine grid, shared waypoint times, merged near-duplicates."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from staghunt.task import VehicleLimits
+from staghunt.trajectory import time_plan
+from staghunt.trajectory.timing import acceleration_polyhedron, merge_waypoints, split_legs, team_chord
+
+LIMITS = VehicleLimits(max_speed=12.0, max_acceleration=3.0, cruise_speed=5.0)
+
+
+def _fine(traj, n=40001):
+    t = np.linspace(0.0, traj.duration, n)
+    return np.linalg.norm(traj.spline(t, 1), axis=-1), np.linalg.norm(traj.spline(t, 2), axis=-1)
+
+
+def _line(direction, length, m=6):
+    d = np.asarray(direction, float) / np.linalg.norm(direction)
+    return (np.array([10.0, 10.0, 20.0]) + np.linspace(0.0, length, m)[:, None] * d)[None]  # (1, m, 3)
+
+
+def test_a_straight_line_takes_the_bang_bang_time():
+    # From rest to rest over L = 100 m at v = 5 m/s and a = 3 m/s^2 no trajectory within the
+    # limits can be faster than L / v + v / a = 21.667 s (accelerate 5/3 s, cruise, brake 5/3 s).
+    L, v, a = 100.0, 5.0, 3.0
+    traj = time_plan(_line([1, 0, 0], L), LIMITS)
+    best = L / v + v / a
+    assert best == pytest.approx(21.6667, abs=1e-3)
+    assert best <= traj.duration <= 1.08 * best
+    assert traj.bound == pytest.approx(best)
+    speed, acc = _fine(traj)
+    assert speed.max() <= v and acc.max() <= a
+    assert speed.max() >= 0.95 * v  # it does cruise
+    np.testing.assert_allclose(traj.spline(traj.times[[0, -1]], 1), 0.0, atol=1e-9)  # rest to rest
+
+
+def test_limits_are_norms_not_per_axis():
+    # Along the diagonal a per-axis limit would let the speed reach sqrt(3) * 5 = 8.66 m/s.
+    traj = time_plan(_line([1, 1, 1], 150.0), LIMITS)
+    speed, acc = _fine(traj)
+    assert 0.95 * 5.0 <= speed.max() <= 5.0
+    assert acc.max() <= 3.0
+    assert traj.duration >= 150.0 / 5.0 + 5.0 / 3.0
+
+
+def test_a_sharp_turn_slows_down_within_the_limits_and_keeps_the_waypoints():
+    p = np.array([[[0, 0, 20], [30, 0, 20], [30, 30, 20], [0, 30, 25], [0, 60, 25]]], float)
+    for spacing in (math.inf, 4.0, 1.5):
+        traj = time_plan(p, LIMITS, spacing)
+        speed, acc = _fine(traj)
+        assert speed.max() <= 5.0 and acc.max() <= 3.0
+        np.testing.assert_allclose(traj.spline(traj.times)[:, 0], p[0], atol=1e-9)
+        assert np.all(np.diff(traj.times) > 0)
+        assert traj.duration >= traj.bound
+
+
+def test_the_team_shares_waypoint_times():
+    # UAV 2 flies legs twice as long as UAV 1's: both reach their k-th point at the same time t_k,
+    # and the timing is set by UAV 2 (the longest legs).
+    a = np.array([[0, 0, 20], [10, 0, 20], [20, 5, 20], [30, 5, 20]], float)
+    b = np.array([[0, 20, 20], [20, 20, 20], [40, 30, 20], [60, 30, 20]], float)
+    traj = time_plan(np.stack([a, b]), LIMITS)
+    pos = np.moveaxis(traj.spline(traj.times), 0, 1)
+    np.testing.assert_allclose(pos, np.stack([a, b]), atol=1e-9)
+    speed = np.linalg.norm(traj.spline(np.linspace(0, traj.duration, 20001), 1), axis=-1)  # (T, 2)
+    assert speed[:, 1].max() > 0.95 * 5.0 and speed[:, 0].max() < 0.6 * 5.0
+    np.testing.assert_allclose(team_chord(np.stack([a, b])), np.concatenate([[0], np.cumsum(
+        np.linalg.norm(np.diff(b, axis=0), axis=-1))]))
+
+
+def test_near_duplicate_waypoints_are_merged_for_the_whole_team():
+    base = np.array([[0, 0, 20], [10, 0, 20], [10.2, 0.1, 20], [20, 0, 20], [20, 0, 20],
+                     [30, 0, 20], [30.1, 0, 20]], float)
+    other = base + [0, 20, 0]
+    other[2] = other[1] + [2.0, 0, 0]  # UAV 2 moves 2 m on leg 1 -> 2: index 2 is kept
+    p = np.stack([base, other])
+    keep = merge_waypoints(p)
+    assert keep.tolist() == [0, 1, 2, 3, 6]  # 4 duplicates 3; the goal 6 replaces 5 (0.1 m away)
+    traj = time_plan(p, LIMITS)
+    assert traj.kept.tolist() == keep.tolist() and traj.merged == 2
+    assert np.all(np.diff(traj.times) > 0.05)  # no zero-length leg left
+    np.testing.assert_allclose(traj.points[:, -1], p[:, -1])  # the goal is kept exactly
+    single = np.array([[[0, 0, 20], [0.1, 0, 20], [0.2, 0, 20]]], float)
+    assert merge_waypoints(single).tolist() == [0, 2]
+
+
+def test_a_team_that_does_not_move_holds():
+    p = np.repeat(np.array([[[5.0, 5.0, 20.0]]]), 4, axis=1)
+    traj = time_plan(p, LIMITS)
+    assert traj.points.shape == (1, 2, 3) and traj.duration > 0
+    assert np.abs(traj.spline(np.linspace(0, traj.duration, 11), 1)).max() == 0.0
+
+
+def test_split_legs_and_the_polyhedron():
+    p = np.array([[[0, 0, 0], [10, 0, 0], [10, 3, 0]]], float)
+    dense, index = split_legs(p, 4.0)
+    assert index.tolist() == [0, 3, 4] and dense.shape == (1, 5, 3)
+    np.testing.assert_allclose(dense[0, index], p[0])
+    d, radius = acceleration_polyhedron()
+    np.testing.assert_allclose(np.linalg.norm(d, axis=1), 1.0)
+    assert 1.0 < radius < 1.09  # the polyhedron d . a <= 1 / R lies in the unit ball, close to it
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(ValueError, match="finite"):
+        time_plan(np.full((1, 3, 3), np.nan), LIMITS)
+    with pytest.raises(ValueError, match="cruise_speed"):
+        time_plan(_line([1, 0, 0], 10.0), VehicleLimits(max_speed=12.0, max_acceleration=3.0, cruise_speed=-1.0))
