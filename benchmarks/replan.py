@@ -194,7 +194,9 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
     try:
         wp, dyn, n, lead = _with_popup(job, get_engine("auto", job["threads"]))
         r = fly(job["result"], waypoints=wp, events=dyn, seed=job["episode"],
-                config=FlyConfig(wind=job.get("wind", 0.0)), threads=job["threads"])
+                config=FlyConfig(wind=job.get("wind", 0.0),
+                                 certify_rounds=job.get("certify_rounds", FlyConfig.certify_rounds)),
+                threads=job["threads"])
     except ValueError as exc:
         return {**_meta(job), "error": str(exc)}
     recs = r.replans
@@ -270,7 +272,8 @@ def solve_only(job: dict[str, Any]) -> dict[str, Any]:
     scenario = replace(scenario, dynamics=dyn)
     _, ref, _ = plan_around(scenario, dyn, wp, 1, settings, FlyConfig(), engine)
     popup = dyn.events[0]
-    planner = Replanner(scenario, dyn, FlyConfig(), engine, np.random.default_rng(job["episode"]))
+    config = FlyConfig(certify_rounds=job.get("certify_rounds", FlyConfig.certify_rounds))
+    planner = Replanner(scenario, dyn, config, engine, np.random.default_rng(job["episode"]))
     planner.known.sensed[popup.name] = popup.shape
     t = math.ceil(popup.time * 10.0) / 10.0  # the first planner tick after it appears
     _, rec = planner.solve(ref, t, "sensed " + popup.name)
@@ -288,6 +291,8 @@ def main() -> int:
     ap.add_argument("--solve-only", action="store_true",
                     help="only each episode's first re-plan, on the reference, one at a time with the "
                     "engine's adaptive threads (the latency on the whole machine); writes replan_solve.json")
+    ap.add_argument("--certify-rounds", type=int, default=None,
+                    help="FlyConfig.certify_rounds (default: FlyConfig's)")
     args = ap.parse_args()
 
     import staghunt
@@ -309,6 +314,8 @@ def main() -> int:
         write_result(res, path)
         for ep in make_episodes(kind, count, sc, np.array(res.waypoints)):
             base = {**ep, "result": str(path), "threads": threads}
+            if args.certify_rounds is not None:
+                base["certify_rounds"] = args.certify_rounds
             if kind == "scenario2" and ep["episode"] < args.episodes:
                 jobs.append(base)
             if kind == "scenario2" and ep["episode"] < args.wind_episodes:

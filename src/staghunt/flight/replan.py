@@ -78,6 +78,9 @@ class FlyConfig:
     - ``replan_particles``, ``replan_iterations``: the game's budget per re-plan
       (``particles x (iterations + 1) x N`` path evaluations, as for ``plan``).
     - ``certify_particles``, ``certify_iterations``, ``epsilon``: each re-plan's certificate.
+    - ``certify_rounds``: a certificate that finds a UAV's better reply hands it back: the
+      reply is adopted if the plan stays feasible and passes the in-time check, and the plan is
+      certified again, up to this many times (0: report the first certificate as it is).
     - ``attempts``: solves per re-plan (each new predicted conflict with a motion adds its
       swept window and solves again).
     - ``window_pad``: seconds added on both sides of a conflict's time window.
@@ -99,6 +102,7 @@ class FlyConfig:
     certify_particles: int = 200
     certify_iterations: int = 100
     epsilon: float = 0.01
+    certify_rounds: int = 2
     reply_start: float = 0.1
     attempts: int = 3
     window_pad: float = 3.0
@@ -127,6 +131,8 @@ class FlyConfig:
             ("certify_particles", integer(self.certify_particles), "an integer in [1, 1e6]"),
             ("certify_iterations", integer(self.certify_iterations), "an integer in [1, 1e6]"),
             ("epsilon", real(self.epsilon) and self.epsilon >= 0, "a finite number >= 0"),
+            ("certify_rounds", isinstance(self.certify_rounds, int) and not isinstance(self.certify_rounds, bool)
+             and 0 <= self.certify_rounds <= 20, "an integer in [0, 20]"),
             ("reply_start", real(self.reply_start) and 0 < self.reply_start <= 1, "a number in (0, 1]"),
             ("attempts", integer(self.attempts) and self.attempts <= 20, "an integer in [1, 20]"),
             ("window_pad", real(self.window_pad) and 0 <= self.window_pad <= 60, "a number in [0, 60] s"),
@@ -238,18 +244,20 @@ class Replanner:
             error = float(np.linalg.norm(predicted - ref.state(np.array([t_s]))[0][:, 0], axis=-1).max())
         at_rest = ref.piece_at(t_s).kind == "stop"
         new_ref, out, sub, problems, attempts = self._attempts(
-            ref, ref, t_s, windows, warm, settings, cfg.attempts, MAX_STRETCH,
+            ref, t_s, windows, warm, settings, cfg.attempts, MAX_STRETCH,
             WIDE_AZIMUTH if at_rest else ANGLE_RANGE)
         status = "replanned"
+        splice = (ref, t_s, MAX_STRETCH)
         if new_ref is None and not at_rest:
             stopped, stop, bad = self._stop_short(ref, t_now, t_s)
             if not bad:
                 rest = remaining_plan(scenario, stopped, stop.t1, K)
-                more, out, sub, problems2, n2 = self._attempts(stopped, stopped, stop.t1, windows, rest,
+                more, out, sub, problems2, n2 = self._attempts(stopped, stop.t1, windows, rest,
                                                                settings, 2, math.inf, WIDE_AZIMUTH)
                 attempts += n2
                 if more is not None:
                     new_ref, status = more, "stop, replanned"
+                    splice = (stopped, stop.t1, math.inf)
                 else:
                     problems = problems2 or problems
         if new_ref is None:
@@ -259,16 +267,61 @@ class Replanner:
                                   self._spent, attempts, problems=tuple(problems[:5]), windows=tuple(windows),
                                   state_error_m=error)
             return new_ref, self._keep(record)
-        cert = certify_plan(sub, out.plan, particles=cfg.certify_particles,
-                            iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
-                            epsilon=cfg.epsilon, settings=settings, runner=self.engine.run_swarm,
-                            azimuth=self._azimuth)
-        self._spent += sum(u.evaluations for u in cert.uavs)
+        new_ref, cert = self._certified(new_ref, out.plan, sub, settings, splice)
         record = ReplanRecord(
             t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s, self._spent, attempts,
             tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, (),
             tuple(windows), error)
         return new_ref, self._keep(record)
+
+    def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario, settings: Any,
+                   splice: tuple[Reference, float, float]) -> tuple[Reference, Any]:
+        """Certify ``plan`` (spliced as ``new_ref``); while a certificate finds a better reply
+        and ``certify_rounds`` allow, adopt the worst UAV's reply when the plan stays feasible,
+        its timing from ``splice`` = ``(base, t0, max_stretch)`` meets the limits and it passes
+        the in-time check, then certify again. Returns the reference flown and the last
+        certificate."""
+        cfg = self.config
+        model = CostModel.from_scenario(sub)
+        base, t0, max_stretch = splice
+        for round_ in range(cfg.certify_rounds + 1):
+            cert = certify_plan(sub, plan, particles=cfg.certify_particles,
+                                iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
+                                epsilon=cfg.epsilon, settings=settings, runner=self.engine.run_swarm,
+                                azimuth=self._azimuth)
+            self._spent += sum(u.evaluations for u in cert.uavs)
+            worst = cert.uavs[cert.worst] if cert.uavs else None
+            if cert.is_equilibrium or round_ == cfg.certify_rounds or worst is None or worst.deviation is None:
+                break
+            candidate = plan.copy()
+            candidate[cert.worst] = worst.deviation
+            c = evaluate(model, candidate[None])
+            self._spent += 1
+            if c.total_violation[0] > 0:
+                break
+            spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch)
+            if spliced is None:
+                break
+            plan, new_ref = candidate, spliced
+        return new_ref, cert
+
+    def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float
+                ) -> tuple[Reference | None, list[str], list[tuple[str, float, float]] | None]:
+        """``plan`` ``(N, K, 3)`` of ``sub`` timed from ``base``'s state at ``t0`` and spliced
+        into ``base``. Returns the new reference if its timing meets the limits within
+        ``max_stretch`` and it passes the in-time check, else ``None``, with the problems and
+        the conflicts with known motions found (``None``: the timing failed)."""
+        scenario = self.scenario
+        state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
+        goals = to_absolute(scenario.world.terrain, scenario.goals()[:, None])
+        absolute = np.concatenate([state[0][:, None], to_absolute(sub.world.terrain, plan), goals], axis=1)
+        try:
+            piece = timed_path(absolute, t0, scenario.vehicle, state[1], state[2], max_stretch=max_stretch)
+        except ValueError as exc:
+            return None, [str(exc)], None
+        new_ref = base.spliced(piece)
+        problems, found, _ = check_piece(sub, self.known, self.dyn, new_ref, t0, piece.t1)
+        return (None, problems, found) if problems else (new_ref, [], found)
 
     def _stop_short(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, Piece, bool]:
         """The stop before a plan from rest: at the switch time within ``max_acceleration``, or,
@@ -291,13 +344,13 @@ class Replanner:
                 break
         return best[0], best[1], best[2]
 
-    def _attempts(self, ref: Reference, base: Reference, t0: float,
+    def _attempts(self, base: Reference, t0: float,
                   windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
                   tries: int, max_stretch: float, azimuth: float
                   ) -> tuple[Reference | None, Any, Any, list[str], int]:
         """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
         known motion adds its window to ``windows``), with headings within ``azimuth`` of the
-        goal direction. Returns the spliced reference (``None``
+        goal direction. Returns the new plan spliced into ``base`` (``None``
         if no plan passed), the last rounds' outcome, its scenario, the problems and the tries."""
         scenario, cfg = self.scenario, self.config
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
@@ -307,7 +360,6 @@ class Replanner:
         cyl, prm = self.known.shapes()
         problems: list[str] = []
         out = sub = None
-        goals = to_absolute(scenario.world.terrain, scenario.goals()[:, None])
         self._azimuth = azimuth
         for attempt in range(1, tries + 1):
             sub = self._problem(starts, cyl, prm, windows)
@@ -320,16 +372,11 @@ class Replanner:
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
                 problems = ["no feasible plan from the switch state"]
                 continue
-            absolute = np.concatenate([state[0][:, None], to_absolute(sub.world.terrain, out.plan), goals], axis=1)
-            try:
-                piece = timed_path(absolute, t0, scenario.vehicle, state[1], state[2],
-                                   max_stretch=max_stretch)
-            except ValueError as exc:
-                return None, out, sub, [str(exc)], attempt
-            new_ref = ref.spliced(piece)
-            problems, found, _ = check_piece(sub, self.known, self.dyn, new_ref, t0, piece.t1)
-            if not problems:
+            new_ref, problems, found = self._splice(base, t0, sub, out.plan, max_stretch)
+            if new_ref is not None:
                 return new_ref, out, sub, [], attempt
+            if found is None:  # the timing itself failed
+                return None, out, sub, problems, attempt
             new = [w for w in found if not any(covers(o, w) for o in windows)]
             if not new:
                 return None, out, sub, problems, attempt  # not a motion's window: no retry helps
