@@ -540,6 +540,7 @@ def test_terrain_frame_on_a_dem_site_gives_back_the_plan(wedge):
         amsl = np.r_[home.z + z[0], ground_amsl(lat[1:], lon[1:]) + z[1:]]
         np.testing.assert_allclose(_site(scenario, lat, lon, amsl), result.paths[n], atol=TOL)
         doc = json.loads((out / f"uav{n + 1}.plan").read_text())
+        assert doc["mission"]["firmwareType"] == 3 and doc["mission"]["globalPlanAltitudeMode"] == 0
         pitems = [i for i in doc["mission"]["items"] if i["command"] in (16, 22)]
         assert [i["frame"] for i in pitems] == [3] + [10] * (len(pitems) - 1)
         assert [i["AltitudeMode"] for i in pitems] == [1] + [4] * (len(pitems) - 1)

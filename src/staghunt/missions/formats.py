@@ -214,7 +214,9 @@ def qgc_plan(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, cruise: floa
         "groundStation": "staghunt" + (f" ({note})" if note else ""),
         "mission": {
             "version": 2,
-            "firmwareType": 12,  # PX4 (MAV_AUTOPILOT_PX4); QGC converts for ArduPilot on load
+            # PX4 (MAV_AUTOPILOT_PX4; QGC converts for ArduPilot on load), but ArduPilot (3) for the
+            # terrain frame: QGC offers MAV_FRAME 10 only to non-PX4 vehicles
+            "firmwareType": 3 if frame == "terrain" else 12,
             "vehicleType": 2,  # MAV_TYPE_QUADROTOR
             "cruiseSpeed": float(cruise),
             "hoverSpeed": float(cruise),
