@@ -238,9 +238,9 @@ def qgc_wpl(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.nd
     ground = geo[:, 2] if ground is None else ground
     lines = ["QGC WPL 110"]
 
-    def row(seq: int, frame: int, cmd: int, p: list[float], current: int = 0) -> str:
+    def row(seq: int, mav_frame: int, cmd: int, p: list[float], current: int = 0) -> str:
         vals = [0.0 if math.isnan(v) else v for v in p]
-        fields = [str(seq), str(current), str(frame), str(cmd)] + [f"{v:.8f}" for v in vals[:4]] + \
+        fields = [str(seq), str(current), str(mav_frame), str(cmd)] + [f"{v:.8f}" for v in vals[:4]] + \
                  [f"{vals[4]:.8f}", f"{vals[5]:.8f}", f"{vals[6]:.6f}", "1"]
         return "\t".join(fields)
 
