@@ -45,6 +45,18 @@ def _origin(text: str) -> Any:
 _origin.__name__ = "origin"
 
 
+def _altitude_frame(text: str) -> str:
+    from staghunt.missions.export import parse_altitude_frame
+
+    try:
+        return parse_altitude_frame(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+_altitude_frame.__name__ = "altitude frame"
+
+
 def add_commands(sub: Any) -> None:
     from staghunt.missions import FORMATS
 
@@ -66,6 +78,11 @@ def add_commands(sub: Any) -> None:
                    "(default: the scenario's [origin]); e.g. --origin -33.8837,151.2006,30")
     p.add_argument("--formats", metavar="LIST", default=",".join(FORMATS),
                    help=f"comma-separated formats (default: all: {','.join(FORMATS)})")
+    p.add_argument("--altitude-frame", type=_altitude_frame, default="relative", metavar="FRAME",
+                   help="altitudes of .plan, .waypoints, .kmz and Litchi: relative (to the takeoff point, "
+                   "default), amsl (above mean sea level; DJI: EGM96 / WGS84 ellipsoid; Litchi has none) or "
+                   "terrain (above the scenario's terrain under each waypoint: MAVLink frame 10, Litchi "
+                   "above ground; DJI has none)")
     p.add_argument("--force", action="store_true", help="export an infeasible or unsafe plan, marked as such")
     p.add_argument("--no-plots", action="store_true", help="do not draw speed.png and separation.png")
     p.add_argument("--simulate", action="store_true",
@@ -86,7 +103,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     try:
         report = export_result(args.result, args.out, origin=args.origin, formats=args.formats,
                                force=args.force, plots=not args.no_plots, simulate=args.simulate,
-                               progress=progress)
+                               progress=progress, altitude_frame=args.altitude_frame)
     except ExportRefused as exc:
         error(one_line(exc))
         return EXIT_NEGATIVE
@@ -111,6 +128,7 @@ def cmd_export(args: argparse.Namespace) -> int:
               f"{f.min_clearance.min():.2f} m (required {f.required_clearance:g})")
     if report.warnings:
         print(f"{PROG}: warning: exported with --force although: {report.warnings[0]}", file=sys.stderr)
-    print(f"origin {report.origin.latitude:.6f}, {report.origin.longitude:.6f}, {report.origin.altitude:g} m AMSL; "
+    print(f"origin {report.origin.latitude:.6f}, {report.origin.longitude:.6f}, {report.origin.altitude:g} m AMSL "
+          f"(geoid {report.geoid_height:+.2f} m, {report.geoid_model}); altitudes {args.altitude_frame}; "
           f"wrote {len(report.files)} files to {args.out} in {report.seconds:.2f} s")
     return EXIT_OK

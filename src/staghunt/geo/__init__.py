@@ -4,8 +4,9 @@ Conversions use pymap3d (``enu2geodetic`` / ``geodetic2enu``), never hand-writte
 origin's altitude is metres above mean sea level (AMSL) of the site point ``(0, 0, 0)``; pymap3d
 treats it as the height of the ENU origin and returns heights on the same datum, so a site point
 at ``z`` (absolute, ``z = g(x, y) + h``) lies ``origin.altitude + z`` AMSL up to the curvature of
-the earth (under 1 mm over 100 m, 0.1 m over 1 km, included by pymap3d). The geoid's departure
-from the ellipsoid is constant over a site of a few kilometres and is not modelled.
+the earth (under 1 mm over 100 m, 0.1 m over 1 km, included by pymap3d). Heights above the WGS84
+ellipsoid (``h = AMSL + N``, for formats that want them) use the EGM2008 geoid height ``N`` of
+:mod:`staghunt.geo.geoid`.
 """
 
 from __future__ import annotations

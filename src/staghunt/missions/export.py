@@ -4,6 +4,12 @@ Nothing is written unless every file could be built; each file is replaced atomi
 infeasible plan, trajectories that break a limit in time, or (with ``simulate``) a simulated
 flight that does, are refused unless ``force``; then every file that has a place for it says
 so, and ``MISSION_UNSAFE.txt`` lists why.
+
+Altitudes are written in one frame per export (``relative`` to home, ``amsl``, or above the
+``terrain`` of the scenario's model); a format without that frame, or a file that would break a
+published limit of its target (:data:`staghunt.missions.formats.TARGET_LIMITS`), is refused with
+:class:`~staghunt.missions.formats.TargetLimitError` before anything is written. WGS84 ellipsoid
+heights (DJI) come from the EGM2008 geoid (:mod:`staghunt.geo.geoid`).
 """
 
 from __future__ import annotations
@@ -21,6 +27,7 @@ import numpy as np
 from staghunt.costs import CostModel
 from staghunt.flight.mission import MissionFlight, fly_mission, read_trajectories_csv
 from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
+from staghunt.geo.geoid import GEOID_MODEL, geoid_height, geoid_source
 from staghunt.io.atomic import atomic_file, check_replaceable, write_text_atomic
 from staghunt.missions import formats as fm
 from staghunt.trajectory import SafetyReport, Trajectories, time_and_check
@@ -39,7 +46,8 @@ class ExportReport:
     """What was written: ``files``; the timing (``duration`` s, ``stretch``, per UAV
     ``max_speed``, ``max_acceleration``, the reference duration ``bound`` s and the number of
     ``merged`` waypoint indices); the in-time ``safety``; the simulated ``flight`` (with
-    ``--simulate``); ``seconds`` spent."""
+    ``--simulate``); ``seconds`` spent; the ``altitude_frame`` and the geoid height at the
+    origin (m, ``geoid_model``)."""
 
     files: tuple[Path, ...]
     origin: GeoOrigin
@@ -53,6 +61,9 @@ class ExportReport:
     flight: MissionFlight | None = None
     warnings: tuple[str, ...] = field(default=())
     seconds: float = 0.0
+    altitude_frame: str = "relative"
+    geoid_height: float = 0.0
+    geoid_model: str = GEOID_MODEL
 
 
 def _parse_formats(formats: Any) -> tuple[str, ...]:
@@ -65,23 +76,38 @@ def _parse_formats(formats: Any) -> tuple[str, ...]:
     return tuple(dict.fromkeys(items))
 
 
+def parse_altitude_frame(frame: Any) -> str:
+    """``relative`` (default), ``amsl`` or ``terrain``; anything else is a one-line ``ValueError``."""
+    text = "relative" if frame is None else str(frame).strip().lower()
+    if text not in fm.ALTITUDE_FRAMES:
+        raise ValueError(f"unknown altitude frame {str(frame)[:40]!r}; choose from {', '.join(fm.ALTITUDE_FRAMES)}")
+    return text
+
+
 def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = None,
                   formats: Any = None, force: bool = False, plots: bool = True,
-                  data: dict[str, Any] | None = None, simulate: bool = False,
-                  progress: Callable[[float, float], None] | None = None) -> ExportReport:
+                  data: dict[str, Any] | None = None, altitude_frame: str = "relative",
+                  simulate: bool = False, progress: Callable[[float, float], None] | None = None
+                  ) -> ExportReport:
     """Export the plan of ``result_path`` (a ``result.json``) to ``out_dir``.
 
     ``origin``: the site frame's geodetic origin (default: the scenario's; one of them is
-    needed). ``simulate``: fly ``trajectories.csv`` with the simulated vehicles first
+    needed). ``altitude_frame``: ``relative`` (to the takeoff point), ``amsl`` or ``terrain``
+    (above the scenario's terrain under each waypoint) for ``.plan``, ``.waypoints``, ``.kmz``
+    and Litchi. ``simulate``: fly ``trajectories.csv`` with the simulated vehicles first
     (:func:`staghunt.flight.mission.fly_mission`; ``progress(t, t_end)`` about once per simulated
     second); a flight that breaks a limit is unsafe like a plan that does. Raises ``ValueError``
-    with one line for bad input, :class:`ExportRefused` for an infeasible or unsafe plan
-    without ``force``."""
+    with one line for bad input (a frame a chosen format lacks and a target's limit included:
+    :class:`~staghunt.missions.formats.TargetLimitError`), :class:`ExportRefused` for an
+    infeasible or unsafe plan without ``force``."""
     from staghunt.analysis.certify import plan_from_result_data
     from staghunt.io.result_json import read_result
 
     t0 = time.perf_counter()
     chosen = _parse_formats(formats)
+    frame = parse_altitude_frame(altitude_frame)
+    for f in chosen:
+        fm.check_frame(f, frame)
     if data is None:
         data = read_result(result_path)
     scenario, _, _ = plan_from_result_data(data, str(result_path))
@@ -102,23 +128,26 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     if data.get("status") != "feasible":
         problems.append(f"the plan is {data.get('status')!r}: {data.get('message', '')}")
     problems += list(safety.problems)
+    if problems and not force:
+        raise _refused(result_path, problems)
+    note = "UNSAFE: " + problems[0] if problems else ""
+    files = _build(scenario, model, traj, origin, chosen, names, note[:200], frame)  # checks the targets' limits
     flight = None
-    if simulate:
+    if simulate:  # after every check that needs no flight, so a refusal comes before minutes of it
         t = traj.grid()
         pos, vel = traj.sample(t)
         flight = fly_mission(scenario, *read_trajectories_csv(fm.trajectories_csv(t, pos, vel)),
                              progress=progress)
-        problems += list(flight.problems)
-    if problems and not force:
-        raise ExportRefused(f"{result_path}: not exported: {problems[0]}"
-                            + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
-                            + "; --force writes the files anyway, marked unsafe")
-    note = "UNSAFE: " + problems[0] if problems else ""
-    files = _build(scenario, model, traj, origin, chosen, names, note[:200])
+        if flight.problems:
+            problems += list(flight.problems)
+            if not force:
+                raise _refused(result_path, problems)
+            note = "UNSAFE: " + problems[0]
+            files = _build(scenario, model, traj, origin, chosen, names, note[:200], frame)
     if problems:
         files["MISSION_UNSAFE.txt"] = "This mission was exported with --force although:\n" + \
             "\n".join(f"- {p}" for p in problems) + "\nDo not fly it as it is.\n"
-    summary = _summary(data, origin, traj, safety, problems, names)
+    summary = _summary(data, origin, traj, safety, problems, names, frame)
     if flight is not None:
         summary["flight"] = _flight_summary(flight, names)
     files["mission.json"] = json.dumps(summary, indent=1) + "\n"
@@ -144,29 +173,56 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     return ExportReport(files=tuple(written), origin=origin, duration=traj.duration, stretch=traj.stretch,
                         max_speed=tuple(float(v) for v in traj.max_speed),
                         max_acceleration=tuple(float(v) for v in traj.max_acceleration),
-                        safety=safety, bound=traj.bound, merged=traj.merged, flight=flight, warnings=tuple(problems), seconds=time.perf_counter() - t0)
+                        safety=safety, bound=traj.bound, merged=traj.merged, flight=flight,
+                        warnings=tuple(problems), seconds=time.perf_counter() - t0,
+                        altitude_frame=frame, geoid_height=float(summary["origin"]["geoid_height_m"]))
+
+
+def _refused(result_path: str, problems: list[str]) -> ExportRefused:
+    return ExportRefused(f"{result_path}: not exported: {problems[0]}"
+                         + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
+                         + "; --force writes the files anyway, marked unsafe")
 
 
 def _build(scenario: Any, model: CostModel, traj: Trajectories, origin: GeoOrigin,
-           chosen: tuple[str, ...], names: list[str], note: str) -> dict[str, str | bytes]:
-    geo = site_to_geodetic(traj.points, origin)  # (N, M, 3)
-    starts = traj.points[:, 0]
-    ground = np.stack([starts[:, 0], starts[:, 1], model.terrain.height(starts[:, 0], starts[:, 1])], axis=-1)
-    homes = site_to_geodetic(ground, origin)  # (N, 3) takeoff points
-    speeds = np.clip(traj.leg_speeds(), 0.1, scenario.vehicle.max_speed)
+           chosen: tuple[str, ...], names: list[str], note: str,
+           frame: str = "relative") -> dict[str, str | bytes]:
+    """Every chosen file's content; raises :class:`~staghunt.missions.formats.TargetLimitError`
+    if one would break its target's limits (nothing is written then)."""
+    pts = traj.points  # (N, M, 3) site frame
+    geo = site_to_geodetic(pts, origin)  # (N, M, 3)
+    under = np.stack([pts[..., 0], pts[..., 1], model.terrain.height(pts[..., 0], pts[..., 1])], axis=-1)
+    ground = site_to_geodetic(under, origin)[..., 2]  # (N, M) ground AMSL under each point
+    homes = site_to_geodetic(under[:, 0], origin)  # (N, 3) takeoff points: the ground under the start
+    need_ell = "kmz" in chosen
+    ell = geo[..., 2] + geoid_height(geo[..., 0], geo[..., 1]) if need_ell else None  # (N, M)
+    home_ell = homes[:, 2] + geoid_height(homes[:, 0], homes[:, 1]) if need_ell else None  # (N,)
+    speeds = np.clip(traj.leg_speeds(), 0.1, scenario.vehicle.max_speed)  # (N, M - 1)
+    dts = np.diff(traj.times)  # (M - 1,) common leg durations (s)
     cruise = scenario.vehicle.cruise_speed
+    M = pts.shape[1]
+    items = 1 + 2 * (M - 1)  # takeoff, then (speed, waypoint) per leg
     files: dict[str, str | bytes] = {}
     for n in range(len(names)):
         stem = f"uav{n + 1}"
         if "plan" in chosen:
-            files[f"{stem}.plan"] = fm.qgc_plan(geo[n], speeds[n], homes[n], cruise, note)
+            fm.check_limits("plan", f"{stem}.plan", waypoints=M, items=items)
+            files[f"{stem}.plan"] = fm.qgc_plan(geo[n], speeds[n], homes[n], cruise, note, ground[n], frame)
         if "waypoints" in chosen:
-            files[f"{stem}.waypoints"] = fm.qgc_wpl(geo[n], speeds[n], homes[n])
+            fm.check_limits("waypoints", f"{stem}.waypoints", waypoints=M, items=items + 1)
+            files[f"{stem}.waypoints"] = fm.qgc_wpl(geo[n], speeds[n], homes[n], ground[n], frame)
         if "kmz" in chosen:
+            assert ell is not None and home_ell is not None
+            fm.check_limits("kmz", f"{stem}.kmz", waypoints=M, speeds=fm.dji_speeds(speeds[n]))
             files[f"{stem}.kmz"] = fm.dji_kmz(geo[n], speeds[n], homes[n], cruise,
-                                              f"{names[n]}" + (f" {note}" if note else ""))
+                                              f"{names[n]}" + (f" {note}" if note else ""),
+                                              ell[n], float(home_ell[n]), frame)
         if "litchi" in chosen:
-            files[f"{stem}.litchi.csv"] = fm.litchi_csv(geo[n], speeds[n], homes[n])
+            idx, alt, spd, hold = fm.litchi_rows(geo[n], speeds[n], homes[n], ground[n], frame, dts)
+            name = f"{stem}.litchi.csv"
+            fm.check_limits("litchi", name, waypoints=len(idx), speeds=spd, altitudes=alt,
+                            legs=fm.litchi_legs(geo[n], idx), holds_ms=hold)
+            files[name] = fm.litchi_csv(geo[n], speeds[n], homes[n], ground[n], frame, dts)
     if "kml" in chosen:
         files["mission.kml"] = fm.team_kml(list(geo), names, note)
     if "geojson" in chosen:
@@ -179,19 +235,19 @@ def _build(scenario: Any, model: CostModel, traj: Trajectories, origin: GeoOrigi
 
 
 def _summary(data: dict[str, Any], origin: GeoOrigin, traj: Trajectories, safety: SafetyReport,
-             problems: list[str], names: list[str]) -> dict[str, Any]:
+             problems: list[str], names: list[str], frame: str = "relative") -> dict[str, Any]:
+    n0 = float(geoid_height(origin.latitude, origin.longitude))
     return {
         "format": "staghunt-mission/1",
         "method": data.get("method"), "seed": data.get("seed"), "plan_status": data.get("status"),
         "origin": {"latitude": origin.latitude, "longitude": origin.longitude,
-                   "altitude_amsl_m": origin.altitude},
-        "altitude_datums": {
-            "plan, waypoints": "relative to home = ground under the UAV's start (MAV_FRAME 3)",
-            "kmz": "relativeToStartPoint (the same takeoff point)",
-            "litchi": "altitudemode 0, relative to the takeoff point",
-            "kml, geojson": "metres above mean sea level",
-            "trajectories": "site frame z (absolute; AMSL = origin altitude + z)",
-        },
+                   "altitude_amsl_m": origin.altitude,
+                   "geoid_height_m": round(n0, 3),
+                   "altitude_ellipsoid_m": round(origin.altitude + n0, 3)},
+        "geoid": {"model": GEOID_MODEL, "source": geoid_source(),
+                  "relation": "ellipsoid height (WGS84) = altitude AMSL + geoid height"},
+        "altitude_frame": frame,
+        "altitude_datums": _datums(frame),
         "duration_s": traj.duration, "stretch": traj.stretch,
         "timing": {"method": "time-optimal (TOPP-RA), one path parameter for the team",
                    "duration_bound_s": traj.bound, "duration_over_bound": traj.duration / traj.bound,
@@ -209,6 +265,28 @@ def _summary(data: dict[str, Any], origin: GeoOrigin, traj: Trajectories, safety
                     "min_height_m": dict(zip(names, safety.min_height)),
                     "notes": list(safety.notes)},
         "safe": not problems, "problems": problems,
+    }
+
+
+def _datums(frame: str) -> dict[str, str]:
+    """What each file's altitudes mean for ``frame`` (mission.json ``altitude_datums``)."""
+    mav = {"relative": "MAV_FRAME 3: metres above home (the ground under the UAV's start)",
+           "amsl": "MAV_FRAME 0: metres above mean sea level",
+           "terrain": "MAV_FRAME 10: metres above the terrain under each waypoint (the scenario's "
+                      "terrain model); takeoff item MAV_FRAME 3"}[frame]
+    dji = {"relative": "heightMode/executeHeightMode relativeToStartPoint (metres above the takeoff "
+                       "point); wpml:ellipsoidHeight and takeOffRefPoint: WGS84 ellipsoid heights",
+           "amsl": "heightMode EGM96 (wpml:height AMSL), executeHeightMode WGS84 (executeHeight = "
+                   "ellipsoid height); wpml:ellipsoidHeight and takeOffRefPoint: WGS84 ellipsoid heights",
+           }.get(frame, "not written: no terrain frame")
+    litchi = {"relative": "altitudemode 0: metres above the takeoff point",
+              "terrain": "altitudemode 1: metres above the ground under each waypoint"}.get(frame, "not written: no AMSL mode")
+    return {
+        "plan, waypoints": mav + "; home position AMSL",
+        "kmz": dji,
+        "litchi": litchi,
+        "kml, geojson": "metres above mean sea level",
+        "trajectories": "site frame z (absolute; AMSL = origin altitude + z)",
     }
 
 
