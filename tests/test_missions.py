@@ -20,6 +20,7 @@ from staghunt import plan
 from staghunt.cli import main
 from staghunt.costs import CostModel
 from staghunt.geo import geodetic_to_site, parse_origin, site_to_geodetic
+from staghunt.flight.mission import read_trajectories_csv
 from staghunt.io.result_json import write_result
 from staghunt.missions import export_result
 from staghunt.missions.formats import LITCHI_HEADER
@@ -65,6 +66,30 @@ def exported(planned, tmp_path_factory):
     _, _, path = planned
     out = tmp_path_factory.mktemp("mission")
     report = export_result(str(path), str(out), plots=False)
+    return out, report
+
+
+@pytest.fixture(scope="module", params=["scenario2-sydney", "site_wedge"])
+def planned_at(request, planned, tmp_path_factory):
+    """The cases every file must read back in: scenario 2 exported at an origin near Sydney, and
+    the DEM site (site_wedge) at its own origin. The scenario returned carries the export's
+    origin, so that ``_site`` converts with it."""
+    if request.param == "scenario2-sydney":
+        scenario, result, path = planned
+        return replace(scenario, origin=parse_origin(SYDNEY)), result, path
+    scenario = load_scenario("site_wedge")
+    result = plan(scenario, "rigid", 1, scenario.solver.with_(particles=40, iterations=20), engine="numba")
+    assert result.feasible, result.message
+    path = tmp_path_factory.mktemp("wedge-plan") / "result.json"
+    write_result(result, path)
+    return scenario, result, path
+
+
+@pytest.fixture(scope="module")
+def exported_at(planned_at, tmp_path_factory):
+    scenario, _, path = planned_at
+    out = tmp_path_factory.mktemp("mission-at")
+    report = export_result(str(path), str(out), origin=scenario.origin, plots=False)
     return out, report
 
 
@@ -142,22 +167,22 @@ def test_in_time_checks_keep_separation_and_clearance_at_every_sample(planned):
 # ----------------------------------------------------------------------------------- the files
 
 
-def test_every_file_is_written(exported):
-    out, report = exported
+def test_every_file_is_written(exported_at):
+    out, report = exported_at
     names = {p.name for p in report.files}
-    for n in (1, 2, 3):
+    for n in range(1, len(report.max_speed) + 1):
         assert {f"uav{n}.plan", f"uav{n}.waypoints", f"uav{n}.kmz", f"uav{n}.litchi.csv"} <= names
     assert {"mission.kml", "mission.geojson", "trajectories.csv", "mission.json"} <= names
     summary = json.loads((out / "mission.json").read_text())
     assert summary["safe"] and summary["duration_s"] == pytest.approx(report.duration)
 
 
-def test_waypoints_file_read_by_pymavlink(planned, exported):
+def test_waypoints_file_read_by_pymavlink(planned_at, exported_at):
     from pymavlink import mavwp
 
-    scenario, result, _ = planned
-    out, _ = exported
-    for n in range(3):
+    scenario, result, _ = planned_at
+    out, _ = exported_at
+    for n in range(len(result.paths)):
         loader = mavwp.MAVWPLoader()
         count = loader.load(str(out / f"uav{n + 1}.waypoints"))
         K2 = _flown(result).shape[1]
@@ -173,13 +198,13 @@ def test_waypoints_file_read_by_pymavlink(planned, exported):
         assert len(speeds) == K2 - 1 and max(speeds) <= scenario.vehicle.max_speed
 
 
-def test_plan_file_has_every_field_qgroundcontrol_reads(planned, exported):
+def test_plan_file_has_every_field_qgroundcontrol_reads(planned_at, exported_at):
     """The fields of QGroundControl's plan file format (its developer guide, "Plan File Format")
     that its mission loader reads, checked strictly: top level, mission, SimpleItem (7 params),
     geoFence and rallyPoints version 2."""
-    scenario, result, _ = planned
-    out, _ = exported
-    for n in range(3):
+    scenario, result, _ = planned_at
+    out, _ = exported_at
+    for n in range(len(result.paths)):
         doc = json.loads((out / f"uav{n + 1}.plan").read_text())
         assert doc["fileType"] == "Plan" and doc["version"] == 1 and isinstance(doc["groundStation"], str)
         m = doc["mission"]
@@ -201,13 +226,13 @@ def test_plan_file_has_every_field_qgroundcontrol_reads(planned, exported):
         np.testing.assert_allclose(back, _flown(result)[n], atol=TOL)
 
 
-def test_kml_valid_against_the_kml_schema_and_read_by_fastkml(planned, exported):
+def test_kml_valid_against_the_kml_schema_and_read_by_fastkml(planned_at, exported_at):
     import lxml.etree as et
     from fastkml import kml
     from fastkml.validator import validate
 
-    scenario, result, _ = planned
-    out, _ = exported
+    scenario, result, _ = planned_at
+    out, _ = exported_at
     raw = (out / "mission.kml").read_bytes()
     assert validate(element=et.fromstring(raw)) is True
     doc = kml.KML.from_string(raw).features[0]
@@ -221,13 +246,13 @@ def test_kml_valid_against_the_kml_schema_and_read_by_fastkml(planned, exported)
         np.testing.assert_allclose(_site(scenario, lat, lon, alt), want[keep], atol=TOL)
 
 
-def test_geojson_valid_and_read_by_geojson(planned, exported):
+def test_geojson_valid_and_read_by_geojson(planned_at, exported_at):
     import geojson
 
-    scenario, result, _ = planned
-    out, _ = exported
+    scenario, result, _ = planned_at
+    out, _ = exported_at
     fc = geojson.loads((out / "mission.geojson").read_text())
-    assert fc.is_valid and fc["type"] == "FeatureCollection" and len(fc["features"]) == 3
+    assert fc.is_valid and fc["type"] == "FeatureCollection" and len(fc["features"]) == len(result.paths)
     for n, f in enumerate(fc["features"]):
         assert f["geometry"]["type"] == "LineString"
         lon, lat, alt = np.array(f["geometry"]["coordinates"]).T
@@ -242,10 +267,10 @@ DJI_WAYLINE_PLACEMARK = ("index", "executeHeight", "waypointSpeed", "waypointHea
                          "waypointTurnParam", "useStraightLine")
 
 
-def test_dji_kmz_has_the_required_wpml_fields(planned, exported):
-    scenario, result, _ = planned
-    out, _ = exported
-    for n in range(3):
+def test_dji_kmz_has_the_required_wpml_fields(planned_at, exported_at):
+    scenario, result, _ = planned_at
+    out, _ = exported_at
+    for n in range(len(result.paths)):
         with zipfile.ZipFile(out / f"uav{n + 1}.kmz") as z:
             assert set(z.namelist()) == {"wpmz/template.kml", "wpmz/waylines.wpml"}
             template = ET.fromstring(z.read("wpmz/template.kml"))
@@ -264,15 +289,18 @@ def test_dji_kmz_has_the_required_wpml_fields(planned, exported):
             for key in DJI_WAYLINE_PLACEMARK:
                 assert m.find(f"{WPML}{key}") is not None, key
             assert 1.0 <= float(m.find(f"{WPML}waypointSpeed").text) <= 15.0
-        # the heights: test_dji_ellipsoid_heights_give_back_the_plan_at_two_origins
+        # in order, within TOL of the plan, heights included: WGS84 ellipsoid heights less an
+        # independent geoid evaluation are AMSL (more in test_dji_ellipsoid_heights_...)
         ref, lat, lon, height, ell, execute, _, _ = _dji_read(out / f"uav{n + 1}.kmz")
         np.testing.assert_allclose(height, execute, atol=1e-3)
         np.testing.assert_allclose(ell - ref[2], height, atol=0.05)
+        amsl = ell - independent_geoid(lat, lon)
+        np.testing.assert_allclose(_site(scenario, lat, lon, amsl), _flown(result)[n], atol=TOL)
 
 
-def test_litchi_csv_has_the_documented_header(planned, exported):
-    scenario, result, _ = planned
-    out, _ = exported
+def test_litchi_csv_has_the_documented_header(planned_at, exported_at):
+    scenario, result, _ = planned_at
+    out, _ = exported_at
     rows = list(csv.reader((out / "uav1.litchi.csv").open()))
     assert rows[0] == LITCHI_HEADER and len(rows[0]) == 46
     body = rows[1:]
@@ -298,19 +326,30 @@ def test_litchi_csv_has_the_documented_header(planned, exported):
             for r in body]
     np.testing.assert_allclose(held, want_hold, atol=1.0)
     assert all(int(r[col[f"actionparam{i}"]]) <= 32000 for r in body for i in range(1, 16))
-    home = site_to_geodetic(np.r_[_flown(result)[0, 0, :2], 0.0], scenario.origin)
+    start = _flown(result)[0, 0]
+    ground = float(scenario.world.terrain.height(start[0], start[1]))
+    home = site_to_geodetic(np.r_[start[:2], ground], scenario.origin)  # the takeoff point
     lat, lon, alt = (np.array([float(r[col[c]]) for r in body]) for c in ("latitude", "longitude", "altitude(m)"))
     np.testing.assert_allclose(_site(scenario, lat, lon, home[2] + alt), _flown(result)[0][keep], atol=TOL)
 
 
-def test_trajectories_csv_one_grid_for_the_team(exported):
-    out, report = exported
+def test_trajectories_csv_one_grid_for_the_team(planned_at, exported_at):
+    from scipy.interpolate import CubicHermiteSpline
+
+    _, result, _ = planned_at
+    out, report = exported_at
+    N = len(result.paths)
     rows = list(csv.DictReader((out / "trajectories.csv").open()))
     assert list(rows[0]) == ["t", "uav", "x", "y", "z", "vx", "vy", "vz"]
     t = np.array(sorted({float(r["t"]) for r in rows}))
     assert t[0] == 0 and t[-1] == pytest.approx(report.duration, abs=1e-3)
     assert np.diff(t).max() <= 0.1 + 1e-3
-    assert len(rows) == 3 * len(t) and {r["uav"] for r in rows} == {"1", "2", "3"}
+    assert len(rows) == N * len(t) and {r["uav"] for r in rows} == {str(n + 1) for n in range(N)}
+    # at the common waypoint times of mission.json every UAV is at its waypoints, in order
+    times = json.loads((out / "mission.json").read_text())["waypoint_times_s"]
+    t2, pos, vel = read_trajectories_csv((out / "trajectories.csv").read_text())
+    at = CubicHermiteSpline(t2, pos, vel, axis=1)(times)  # (N, M, 3)
+    np.testing.assert_allclose(at, _flown(result), atol=TOL)
 
 
 # ----------------------------------------------------------------------------------- the command
