@@ -177,7 +177,8 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
     ys = b.ymin + cell_size * np.arange(rows)
     gx, gy = np.meshgrid(xs, ys)  # (rows, cols)
     try:
-        with rasterio.open(path) as src:
+        # A small block cache: a decimated read passes every tile of the window through it.
+        with rasterio.Env(GDAL_CACHEMAX=64), rasterio.open(path) as src:
             if src.crs is None:
                 raise ScenarioError(
                     f"the DEM {str(path)!r} has no CRS (coordinate reference system); "

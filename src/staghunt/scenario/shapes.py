@@ -4,6 +4,7 @@ from GeoJSON files, polygons checked with shapely; and the altitude ceiling. Fai
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 from collections.abc import Sequence
@@ -74,11 +75,12 @@ segment of every particle in every iteration); the others are pruned before they
 class _Feature:
     """One checked GeoJSON feature: its kind, name, numbers and rings in lon/lat."""
 
-    __slots__ = ("index", "name", "where", "point", "rings", "radius", "base", "height", "nofly")
+    __slots__ = ("index", "name", "where", "point", "raw", "rings", "radius", "base", "height", "nofly")
 
     def __init__(self, index: int, name: str, where: str) -> None:
         self.index, self.name, self.where = index, name, where
         self.point = False
+        self.raw: list[tuple[Any, str]] = []  # (positions as read, what they are for messages)
         self.rings: list[np.ndarray] = []
         self.radius = self.base = self.height = 0.0
         self.nofly = False
@@ -103,6 +105,15 @@ def _positions(value: Any, where: str, key: str) -> np.ndarray:
     finite, longitude in [-180, 180], latitude in [-90, 90]."""
     if not isinstance(value, list) or not value:
         raise ScenarioError(f"{where}: expected an array of [longitude, latitude] positions, got {_json_kind(value)}", key)
+    try:  # fast path (a city's worth of buildings): one conversion, checks on the whole array
+        a = np.array(value)
+    except (ValueError, TypeError, OverflowError):
+        a = None
+    if a is not None and a.ndim == 2 and a.shape[1] in (2, 3) and a.dtype.kind in "fi":
+        ll = a[:, :2].astype(float)
+        with np.errstate(invalid="ignore"):
+            if np.isfinite(ll).all() and (np.abs(ll[:, 0]) <= 180.0).all() and (np.abs(ll[:, 1]) <= 90.0).all():
+                return ll
     out = np.empty((len(value), 2))
     for k, p in enumerate(value):
         if not isinstance(p, list) or not 2 <= len(p) <= 3 or not all(
@@ -165,7 +176,7 @@ def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
 
         if gtype == "Point":
             feat.point = True
-            feat.rings = [_positions([coords], f"{where}: coordinates", key)]
+            feat.raw = [([coords], f"{where}: coordinates")]
             feat.radius = number("radius", positive=True)
         elif gtype in ("Polygon", "MultiPolygon"):
             polys = [coords] if gtype == "Polygon" else coords
@@ -174,7 +185,7 @@ def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
             for k, poly in enumerate(polys):
                 if not isinstance(poly, list) or not poly:
                     raise ScenarioError(f"{where}: polygon {k} must be an array of rings, got {_json_kind(poly)}", key)
-                feat.rings.append(_positions(poly[0], f"{where}: polygon {k} outer ring", key))
+                feat.raw.append((poly[0], f"{where}: polygon {k} outer ring"))
             feat.nofly = nofly or props.get("nofly") is True
             if not feat.nofly:
                 feat.base = number("base", 0.0)
@@ -184,7 +195,35 @@ def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
         else:
             raise ScenarioError(f"{where}: geometry type {str(gtype)[:40]!r} is not supported (Polygon, MultiPolygon, Point)", key)
         out.append(feat)
+    _place_rings(out, key)
     return out
+
+
+def _place_rings(feats: list[_Feature], key: str) -> None:
+    """Convert and check every feature's positions: all at once when they are well-formed (a
+    city's worth of buildings), else ring by ring to name the first bad one."""
+    raw = [r for f in feats for r, _ in f.raw]
+    flat = None
+    if all(isinstance(r, list) and r for r in raw):
+        try:
+            a = np.array(list(itertools.chain.from_iterable(raw)))
+        except (ValueError, TypeError, OverflowError):
+            a = None
+        if a is not None and a.ndim == 2 and a.shape[1] in (2, 3) and a.dtype.kind in "fi":
+            ll = a[:, :2].astype(float)
+            with np.errstate(invalid="ignore"):
+                if np.isfinite(ll).all() and (np.abs(ll[:, 0]) <= 180.0).all() and (np.abs(ll[:, 1]) <= 90.0).all():
+                    flat = ll
+    if flat is None:
+        for f in feats:
+            f.rings = [_positions(r, label, key) for r, label in f.raw]
+        return
+    at = 0
+    for f in feats:
+        f.rings = []
+        for r, _ in f.raw:
+            f.rings.append(flat[at:at + len(r)])
+            at += len(r)
 
 
 def _geojson(path: Path, key: str, nofly: bool, origin: GeoOrigin | None, terrain: Terrain,
@@ -208,27 +247,27 @@ def _geojson(path: Path, key: str, nofly: bool, origin: GeoOrigin | None, terrai
     xy = np.column_stack([x, y])
     sizes = [len(r) for f in feats for r in f.rings]
     rings_xy = np.split(xy, np.cumsum(sizes)[:-1])
+    # Each feature's distance from the site box, from its bounding box (all features at once).
+    starts = np.cumsum([0] + [sum(len(r) for r in f.rings) for f in feats])[:-1]
+    with np.errstate(invalid="ignore"):
+        lo, hi = np.minimum.reduceat(xy, starts, axis=0), np.maximum.reduceat(xy, starts, axis=0)
+    if site is None:
+        gap = np.zeros(len(feats))
+    else:
+        dx = np.maximum(np.maximum(site[0] - hi[:, 0], lo[:, 0] - site[1]), 0.0)
+        dy = np.maximum(np.maximum(site[2] - hi[:, 1], lo[:, 1] - site[3]), 0.0)
+        gap = np.hypot(dx, dy) - np.array([f.radius if f.point else 0.0 for f in feats])
+        gap = np.where(np.isfinite(gap), gap, np.inf)
+    near = gap <= margin
+    if keep:
+        near |= np.array([f.name in keep for f in feats])
     kept: list[tuple[_Feature, list[np.ndarray]]] = []
-    nearest = (math.inf, feats[0])
     at = 0
-    for f in feats:
-        rings = rings_xy[at:at + len(f.rings)]
+    for f, ok in zip(feats, near):
+        if ok:
+            kept.append((f, rings_xy[at:at + len(f.rings)]))
         at += len(f.rings)
-        if site is None:
-            kept.append((f, rings))
-            continue
-        pts = np.concatenate(rings)
-        if not np.all(np.isfinite(pts)):
-            gap = math.inf
-        else:
-            lo, hi = pts.min(axis=0), pts.max(axis=0)
-            dx = max(site[0] - hi[0], lo[0] - site[1], 0.0)
-            dy = max(site[2] - hi[1], lo[1] - site[3], 0.0)
-            gap = math.hypot(dx, dy) - (f.radius if f.point else 0.0)
-        if gap < nearest[0]:
-            nearest = (gap, f)
-        if gap <= margin or f.name in keep:
-            kept.append((f, rings))
+    nearest = (float(gap.min()), feats[int(np.argmin(gap))])
     if not kept:
         d, f = nearest
         how = f"{d / 1000:.4g} km" if math.isfinite(d) else "beyond any site"
