@@ -872,7 +872,7 @@ def test_export_over_a_mission_fails_without_mixing_the_sets(capsys, monkeypatch
     if phase == "staging":
         real = atomic._write_new
 
-        def flaky(*args, **kwargs):  # noqa: ANN002, ANN003
+        def flaky(*args, **kwargs):
             calls["n"] += 1
             if calls["n"] == 2:
                 raise exc
@@ -882,7 +882,7 @@ def test_export_over_a_mission_fails_without_mixing_the_sets(capsys, monkeypatch
     else:
         real_replace = os.replace
 
-        def flaky_replace(a, b):  # noqa: ANN001
+        def flaky_replace(a, b):
             calls["n"] += 1
             if calls["n"] == 3:  # A's uav1.plan set aside, B's moved in, then the next one fails
                 raise exc
@@ -906,7 +906,7 @@ def test_export_interrupted_into_a_new_directory_leaves_nothing(tmp_path, capsys
     real = atomic._write_new
     calls = {"n": 0}
 
-    def flaky(*args, **kwargs):  # noqa: ANN002, ANN003
+    def flaky(*args, **kwargs):
         calls["n"] += 1
         if calls["n"] == 2:
             raise KeyboardInterrupt
@@ -954,7 +954,7 @@ def _tif(path: Path, value: float = 500.0, pixel: float = 5.0) -> Path:
     """A UTM 32N GeoTIFF of constant ``value`` covering scenario1's site around its origin."""
     import numpy as np
     import rasterio
-    from rasterio.transform import from_origin
+    from affine import Affine
 
     from staghunt.world import GeoOrigin
     from staghunt.world.georef import site_to_crs
@@ -962,7 +962,7 @@ def _tif(path: Path, value: float = 500.0, pixel: float = 5.0) -> Path:
     X0, Y0 = (float(v) for v in site_to_crs(GeoOrigin(47.397742, 8.545594, 488.0), "EPSG:32632", 0.0, 0.0))
     n = int(round(240 / pixel))
     with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float64", crs="EPSG:32632",
-                       transform=from_origin(X0 - 70.0, Y0 + 170.0, pixel, pixel)) as dst:
+                       transform=Affine(pixel, 0.0, X0 - 70.0, 0.0, -pixel, Y0 + 170.0)) as dst:
         dst.write(np.full((n, n), value), 1)
     return path
 
@@ -1028,4 +1028,18 @@ def test_geotiff_and_geojson_refused_before_any_work(tmp_path, capsys, case):
     out = tmp_path / "out"
     err = refused(capsys, "plan", str(scenario), *TINY, "--out", str(out), expect=expect)
     assert "memory" not in err and "internal error" not in err
+    assert not out.exists()
+
+
+def test_export_refuses_a_geotiff_changed_after_planning(tmp_path, capsys):
+    pytest.importorskip("rasterio")
+    tif = _tif(tmp_path / "g.tif", 500.0)
+    scenario = _geo_scenario(tmp_path, _ground(tif))
+    plan_dir = tmp_path / "plan"
+    code, _, err = run(capsys, "plan", str(scenario), *TINY, "--no-certify", "--out", str(plan_dir))
+    assert code in (0, 3), err
+    _tif(tif, 504.0)  # the ground 4 m higher
+    out = tmp_path / "mission"
+    refused(capsys, "export", str(plan_dir / "result.json"), "--out", str(out), "--no-plots",
+            expect=r"embedded scenario: .*ground\.sha256: the GeoTIFF .*g\.tif' does not match this checksum \(file changed\?\)")
     assert not out.exists()

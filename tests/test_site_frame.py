@@ -184,7 +184,7 @@ def test_fine_geotiff_is_read_decimated_with_the_same_heights(tmp_path, monkeypa
     shapes_read = []
     real_read = rasterio.io.DatasetReader.read
 
-    def spy(self, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003
+    def spy(self, *args, **kwargs):
         out = real_read(self, *args, **kwargs)
         shapes_read.append(out.shape)
         return out
