@@ -789,3 +789,257 @@ def test_settings_that_cannot_certify_are_refused_before_the_search(tmp_path, ca
     assert not out.exists()
     code, stdout, err = run(capsys, "plan", str(p), *TINY, "--no-certify", "--out", str(out))
     assert code in (0, 3) and (out / "result.json").is_file()
+
+
+# ------------------------------------------------------------------------------------------------
+# export: the paths checked against the embedded scenario, the set written as one (issue 19)
+# ------------------------------------------------------------------------------------------------
+
+
+def _free(d: dict, fn) -> None:
+    """Apply ``fn(point, height_list, k)`` to every free waypoint of every UAV."""
+    for u in d["uavs"]:
+        for k in range(1, len(u["path"]) - 1):
+            fn(u["path"][k], u["heights"], k)
+
+
+EXPORT_CASES = {
+    # waypoints 1 km outside the site: evaluate says infeasible (3), so does export now
+    "outside_1km": (lambda d: _free(d, lambda p, h, k: p.__setitem__(0, p[0] + 1000.0)), 3,
+                    r"not exported: the paths are infeasible in the embedded scenario: .*leaves the site box: x = 1\d{3}"),
+    # h = 300 m in a 5 - 35 m band (flat ground: z = h)
+    "height_300": (lambda d: (d["uavs"][0]["heights"].__setitem__(1, 300.0), d["uavs"][0]["path"][1].__setitem__(2, 300.0)),
+                   3, r"not exported: .*UAV1 waypoint 1 leaves the site box: h = 300 is above site\.hmax = 35"),
+    # every start moved 8 m: the takeoff points are no longer the scenario's starts
+    "starts_moved": (lambda d: [u["path"][0].__setitem__(0, u["path"][0][0] + 8.0) for u in d["uavs"]], 2,
+                     r"uavs\[0\]\.path: first point .* is not UAV1's start"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(EXPORT_CASES))
+def test_export_checks_the_paths_not_the_stored_status(tmp_path, capsys, result_data, case):
+    edit, code_expected, expect = EXPORT_CASES[case]
+    assert result_data["status"] == "feasible"
+    p = tmp_path / "result.json"
+    p.write_text(json.dumps(_tampered(result_data, edit)))
+    out = tmp_path / "mission"
+    code, stdout, err = run(capsys, "export", str(p), "--out", str(out), "--no-plots")
+    assert code == code_expected, (code, err)
+    assert_clean(err, code)
+    assert re.search(expect, err), err
+    assert not out.exists()
+
+
+def test_export_max_speed_of_micrometres_names_the_vehicle(tmp_path, capsys, result_data):
+    def edit(d: dict) -> None:
+        d["scenario"]["vehicle"].update(max_speed=1e-6, cruise_speed=1e-6)
+
+    p = tmp_path / "result.json"
+    p.write_text(json.dumps(_tampered(result_data, edit)))
+    err = refused(capsys, "export", str(p), "--out", str(tmp_path / "m"), "--no-plots",
+                  expect=r"the mission would last at least \d\.?\d*e\+0\d s .*vehicle\.cruise_speed = 1e-06 m/s.*\[vehicle\]")
+    assert "memory" not in err and "budget" not in err
+
+
+def _snapshot(directory: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(directory.iterdir())}
+
+
+@pytest.fixture()
+def plan_a_exported(tmp_path, capsys, result_file) -> Path:
+    """A directory holding plan A's mission (relative altitudes) and a file of the user's."""
+    out = tmp_path / "mission"
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots")
+    assert code == 0, err
+    (out / "notes.txt").write_text("mine\n")
+    return out
+
+
+@pytest.mark.parametrize("failure", ["disk_full", "ctrl_c"])
+@pytest.mark.parametrize("phase", ["staging", "moving"])
+def test_export_over_a_mission_fails_without_mixing_the_sets(capsys, monkeypatch, result_file, plan_a_exported,
+                                                            failure, phase):
+    """Plan B (another origin: every file differs) over plan A's directory, failing after the
+    first file: A's set stays whole, the user's file stays, nothing staged is left."""
+    import errno
+
+    from staghunt.io import atomic
+
+    out = plan_a_exported
+    before = _snapshot(out)
+    exc = OSError(errno.ENOSPC, "No space left on device") if failure == "disk_full" else KeyboardInterrupt()
+    calls = {"n": 0}
+    if phase == "staging":
+        real = atomic._write_new
+
+        def flaky(*args, **kwargs):
+            calls["n"] += 1
+            if calls["n"] == 2:
+                raise exc
+            return real(*args, **kwargs)
+
+        monkeypatch.setattr(atomic, "_write_new", flaky)
+    else:
+        real_replace = os.replace
+
+        def flaky_replace(a, b):
+            calls["n"] += 1
+            if calls["n"] == 3:  # A's uav1.plan set aside, B's moved in, then the next one fails
+                raise exc
+            return real_replace(a, b)
+
+        monkeypatch.setattr(atomic.os, "replace", flaky_replace)
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots", "--origin", "47.4,8.55,500")
+    monkeypatch.undo()
+    if failure == "disk_full":
+        assert code == 2 and re.search(r"cannot write to .*No space left on device", err), err
+    else:
+        assert code == 130 and err.strip() == "staghunt: interrupted", err
+    assert_clean(err, code)
+    assert calls["n"] >= 2
+    assert _snapshot(out) == before  # names and bytes: A's set, the user's notes.txt, nothing else
+
+
+def test_export_interrupted_into_a_new_directory_leaves_nothing(tmp_path, capsys, monkeypatch, result_file):
+    from staghunt.io import atomic
+
+    real = atomic._write_new
+    calls = {"n": 0}
+
+    def flaky(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise KeyboardInterrupt
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(atomic, "_write_new", flaky)
+    out = tmp_path / "new" / "mission"
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots")
+    assert code == 130, err
+    assert not (tmp_path / "new").exists()
+
+
+def test_export_replaces_the_set_and_keeps_the_users_files(capsys, result_file, plan_a_exported):
+    out = plan_a_exported
+    before = _snapshot(out)
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots", "--origin", "47.4,8.55,500")
+    assert code == 0, err
+    after = _snapshot(out)
+    assert sorted(after) == sorted(before) and after["notes.txt"] == b"mine\n"
+    assert after["uav1.plan"] != before["uav1.plan"] and b'"altitude_amsl_m": 500' in after["mission.json"]
+
+
+# ------------------------------------------------------------------------------------------------
+# GeoTIFF and GeoJSON ground and obstacles: checked like TOML values (issue 19)
+# ------------------------------------------------------------------------------------------------
+
+
+def _geo_scenario(tmp_path: Path, ground: str = "", geojson: object = None) -> Path:
+    """scenario1 (origin, 100 x 100 m site) with a [ground] table and/or a [[geojson]] file."""
+    text = SCENARIO_TEXT
+    if ground:
+        text = text.replace('[ground]\nkind = "flat"  # paper: flat ground', ground)
+        assert text != SCENARIO_TEXT
+    if geojson is not None:
+        gj = tmp_path / "b.geojson"
+        if isinstance(geojson, (str, bytes)):
+            write(tmp_path, "b.geojson", geojson)
+        else:
+            gj.write_text(json.dumps(geojson))
+        text += f'\n[[geojson]]\nfile = "{gj}"\n'
+    return write(tmp_path, "s.toml", text)
+
+
+def _tif(path: Path, value: float = 500.0, pixel: float = 5.0) -> Path:
+    """A UTM 32N GeoTIFF of constant ``value`` covering scenario1's site around its origin."""
+    import numpy as np
+    import rasterio
+    from affine import Affine
+
+    from staghunt.world import GeoOrigin
+    from staghunt.world.georef import site_to_crs
+
+    X0, Y0 = (float(v) for v in site_to_crs(GeoOrigin(47.397742, 8.545594, 488.0), "EPSG:32632", 0.0, 0.0))
+    n = int(round(240 / pixel))
+    with rasterio.open(path, "w", driver="GTiff", width=n, height=n, count=1, dtype="float64", crs="EPSG:32632",
+                       transform=Affine(pixel, 0.0, X0 - 70.0, 0.0, -pixel, Y0 + 170.0)) as dst:
+        dst.write(np.full((n, n), value), 1)
+    return path
+
+
+def _ground(tif: Path, cell: str = "5.0") -> str:
+    return f'[ground]\nkind = "geotiff"\nfile = "{tif}"\ncell_size = {cell}'
+
+
+def _square(lon: float, lat: float, d: float = 0.0001) -> list:
+    return [[[lon, lat], [lon + d, lat], [lon + d, lat + d], [lon, lat + d], [lon, lat]]]
+
+
+def _fc(*features: object) -> dict:
+    return {"type": "FeatureCollection", "features": list(features)}
+
+
+def _poly(coords: list, **props: object) -> dict:
+    return {"type": "Feature", "properties": props, "geometry": {"type": "Polygon", "coordinates": coords}}
+
+
+ON_SITE = (8.5462, 47.3982)  # about (45, 50) m in scenario1's site frame
+
+GEO_CASES = {
+    "tif_1e12": (lambda t: _geo_scenario(t, _ground(_tif(t / "g.tif", 1e12))),
+                 r"ground\.file: the DEM .*g\.tif' holds an elevation of 1e\+12 m .*\[-500, 10000\] m above mean sea level"),
+    "tif_symlink_loop": (lambda t: (os.symlink(t / "g.tif", t / "g.tif"), _geo_scenario(t, _ground(t / "g.tif")))[1],
+                         r"ground\.file: the DEM file .*g\.tif' is a symbolic link loop"),
+    "tif_cell_0.005": (lambda t: _geo_scenario(t, _ground(_tif(t / "g.tif"), "0.005")),
+                       r"ground\.cell_size: cell_size = 0\.005 m would resample the 100 x 100 m site into a grid of about 4e\+08 nodes"),
+    "tif_cell_1e-300": (lambda t: _geo_scenario(t, _ground(_tif(t / "g.tif"), "1e-300")),
+                        r"ground\.cell_size: cell_size = 1e-300 m would resample .*use a cell_size >= "),
+    "geojson_symlink_loop": (lambda t: (os.symlink(t / "b.geojson", t / "b.geojson"),
+                                        write(t, "s.toml", SCENARIO_TEXT + f'\n[[geojson]]\nfile = "{t / "b.geojson"}"\n'))[1],
+                             r"geojson\[0\]\.file: the GeoJSON file .*b\.geojson' is a symbolic link loop"),
+    "point_lat_95": (lambda t: _geo_scenario(t, geojson=_fc({"type": "Feature", "properties": {"name": "mast", "radius": 2},
+                                                            "geometry": {"type": "Point", "coordinates": [8.5, 95.0]}})),
+                     r"b\.geojson' features\[0\] \('mast'\): coordinates: position 0 has latitude 95, outside \[-90, 90\]"),
+    "point_nan": (lambda t: _geo_scenario(t, geojson='{"type": "FeatureCollection", "features": [{"type": "Feature", '
+                                                     '"properties": {"radius": 2}, "geometry": {"type": "Point", '
+                                                     '"coordinates": [NaN, 47.4]}}]}'),
+                  r"b\.geojson' features\[0\] \('feature 0'\): coordinates: position 0 is not finite"),
+    "height_1e300": (lambda t: _geo_scenario(t, geojson=_fc(_poly(_square(*ON_SITE), name="tower", height=1e300))),
+                     r"features\[0\] \('tower'\): property 'height' = 1e\+300 is beyond the supported magnitude"),
+    "features_int": (lambda t: _geo_scenario(t, geojson={"type": "FeatureCollection", "features": [1]}),
+                     r"b\.geojson' features\[0\]: expected a Feature object, got a number"),
+    "properties_list": (lambda t: _geo_scenario(t, geojson=_fc({"type": "Feature", "properties": [1, 2],
+                                                                "geometry": {"type": "Point", "coordinates": [8.5, 47.4]}})),
+                        r"b\.geojson' features\[0\]: 'properties' must be an object, got an array"),
+    "geometry_string": (lambda t: _geo_scenario(t, geojson=_fc({"type": "Feature", "geometry": "x"})),
+                        r"features\[0\] \('feature 0'\): 'geometry' must be an object, got a string"),
+    "ring_of_strings": (lambda t: _geo_scenario(t, geojson=_fc(_poly([["a", "b", "c"]], height=5))),
+                        r"features\[0\] \('feature 0'\): polygon 0 outer ring: position 0 must be \[longitude, latitude\]"),
+    "far_away_1000km": (lambda t: _geo_scenario(t, geojson=_fc(_poly(_square(47.3982, 8.5462), name="block", height=10))),
+                        r"geojson\[0\]\.file: none of the 1 features .* lies \d{4}\.?\d* km from it\); are longitude and latitude swapped"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(GEO_CASES))
+def test_geotiff_and_geojson_refused_before_any_work(tmp_path, capsys, case):
+    pytest.importorskip("rasterio")
+    make, expect = GEO_CASES[case]
+    scenario = make(tmp_path)
+    out = tmp_path / "out"
+    err = refused(capsys, "plan", str(scenario), *TINY, "--out", str(out), expect=expect)
+    assert "memory" not in err and "internal error" not in err
+    assert not out.exists()
+
+
+def test_export_refuses_a_geotiff_changed_after_planning(tmp_path, capsys):
+    pytest.importorskip("rasterio")
+    tif = _tif(tmp_path / "g.tif", 500.0)
+    scenario = _geo_scenario(tmp_path, _ground(tif))
+    plan_dir = tmp_path / "plan"
+    code, _, err = run(capsys, "plan", str(scenario), *TINY, "--no-certify", "--out", str(plan_dir))
+    assert code in (0, 3), err
+    _tif(tif, 504.0)  # the ground 4 m higher
+    out = tmp_path / "mission"
+    refused(capsys, "export", str(plan_dir / "result.json"), "--out", str(out), "--no-plots",
+            expect=r"embedded scenario: .*ground\.sha256: the GeoTIFF .*g\.tif' does not match this checksum \(file changed\?\)")
+    assert not out.exists()

@@ -1,10 +1,9 @@
 """Geo-reference: the site frame (local east-north-up at the scenario's origin) and WGS84.
 
-Conversions use pymap3d (``enu2geodetic`` / ``geodetic2enu``), never hand-written formulas. The
-origin's altitude is metres above mean sea level (AMSL) of the site point ``(0, 0, 0)``; pymap3d
-treats it as the height of the ENU origin and returns heights on the same datum, so a site point
-at ``z`` (absolute, ``z = g(x, y) + h``) lies ``origin.altitude + z`` AMSL up to the curvature of
-the earth (under 1 mm over 100 m, 0.1 m over 1 km, included by pymap3d). Heights above the WGS84
+The conversions themselves live in :mod:`staghunt.world.georef` (pyproj), the one module every
+input (GeoTIFF, GeoJSON) and output (mission files) goes through; they are re-exported here. A
+site point ``(x, y, z)`` lies at the azimuthal-equidistant position ``(x, y)`` around the origin
+and ``origin.altitude + z`` metres above mean sea level (AMSL). Heights above the WGS84
 ellipsoid (``h = AMSL + N``, for formats that want them) use the EGM2008 geoid height ``N`` of
 :mod:`staghunt.geo.geoid`.
 """
@@ -13,10 +12,8 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-import pymap3d
-
 from staghunt.world import GeoOrigin
+from staghunt.world.georef import geodetic_to_site, site_to_geodetic
 
 __all__ = ["GeoOrigin", "check_origin", "geodetic_to_site", "parse_origin", "site_to_geodetic"]
 
@@ -46,20 +43,3 @@ def parse_origin(text: str) -> GeoOrigin:
     except ValueError:
         raise ValueError(f"origin must be LAT,LON,ALT with numbers, got {text[:80]!r}") from None
     return check_origin(GeoOrigin(latitude=lat, longitude=lon, altitude=alt))
-
-
-def site_to_geodetic(points: np.ndarray, origin: GeoOrigin) -> np.ndarray:
-    """``(..., 3)`` absolute site ``(x east, y north, z up)`` metres -> ``(..., 3)``
-    ``(latitude, longitude, altitude AMSL)``."""
-    p = np.asarray(points, dtype=float)
-    lat, lon, alt = pymap3d.enu2geodetic(p[..., 0], p[..., 1], p[..., 2], origin.latitude,
-                                         origin.longitude, origin.altitude)
-    return np.stack([np.asarray(lat), np.asarray(lon), np.asarray(alt)], axis=-1)
-
-
-def geodetic_to_site(geo: np.ndarray, origin: GeoOrigin) -> np.ndarray:
-    """Inverse of :func:`site_to_geodetic`: ``(..., 3)`` ``(lat, lon, alt AMSL)`` -> site ``(x, y, z)``."""
-    g = np.asarray(geo, dtype=float)
-    e, n, u = pymap3d.geodetic2enu(g[..., 0], g[..., 1], g[..., 2], origin.latitude,
-                                   origin.longitude, origin.altitude)
-    return np.stack([np.asarray(e), np.asarray(n), np.asarray(u)], axis=-1)

@@ -1,10 +1,13 @@
-"""Atomic file writes: a result, table or figure is either complete or not there at all."""
+"""Atomic file writes: a result, table or figure is either complete or not there at all, and a set
+of files (a mission) is written as one (:func:`write_file_set`)."""
 
 from __future__ import annotations
 
 import os
+import shutil
 import stat
 import tempfile
+from collections.abc import Callable, Mapping, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any, Iterator
@@ -81,3 +84,97 @@ def _fsync_dir(directory: Path) -> None:
         pass
     finally:
         os.close(fd)
+
+
+def write_file_set(directory: str | os.PathLike[str], files: Mapping[str, str | bytes],
+                   more: Callable[[Path], Sequence[Path]] | None = None) -> list[Path]:
+    """Write a set of files into ``directory`` as one: all of them or none.
+
+    Every file (``files``: name -> text or bytes; then whatever ``more(stage)`` writes into the
+    staging directory it is given, returning the paths) is first written and ``fsync``-ed in a
+    hidden staging directory inside ``directory``; only when all are complete are they moved into
+    place, each ``os.replace``-ing a file of the same name. A failure or an interrupt while
+    staging removes the staging directory (and ``directory`` if this call created it and it is
+    empty again); one while moving puts back the files it replaced and removes the ones it had
+    placed. Files in ``directory`` that the set does not name are never touched. Raises
+    ``ValueError`` (one line) for a name whose destination is not a regular file, ``OSError`` for
+    a failed write (the directory is then as it was)."""
+    out = Path(directory)
+    created = _make_dirs(out)
+    stage: Path | None = None
+    try:
+        for name in files:
+            check_replaceable(out / name)
+        stage = Path(tempfile.mkdtemp(prefix=".staghunt-set.", suffix=".tmp", dir=out))
+        names: list[str] = []
+        for name, content in files.items():
+            _write_new(stage / name, content, _new_file_mode(out / name))
+            names.append(name)
+        if more is not None:
+            for p in more(stage):
+                check_replaceable(out / Path(p).name)
+                names.append(Path(p).name)
+        _commit(stage, out, names)
+    except BaseException:
+        kept = None if stage is None else stage / ".replaced"
+        if stage is not None and not (kept is not None and kept.is_dir() and any(kept.iterdir())):
+            shutil.rmtree(stage, ignore_errors=True)  # (a replaced file that could not be put back stays there)
+        for d in reversed(created):
+            try:
+                d.rmdir()
+            except OSError:
+                break
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
+    _fsync_dir(out)
+    return [out / name for name in names]
+
+
+def _make_dirs(out: Path) -> list[Path]:
+    """``mkdir -p out``; the directories it created, outermost first."""
+    missing = []
+    p = out
+    while not p.exists() and p != p.parent:
+        missing.append(p)
+        p = p.parent
+    out.mkdir(parents=True, exist_ok=True)
+    return list(reversed(missing))
+
+
+def _write_new(path: Path, content: str | bytes, mode: int) -> None:
+    """Create ``path`` (it must not exist), write ``content`` (text as UTF-8), flush and fsync."""
+    data = content.encode("utf-8") if isinstance(content, str) else content
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "wb") as fh:
+        os.chmod(path, mode)
+        fh.write(data)
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def _commit(stage: Path, out: Path, names: Sequence[str]) -> None:
+    """Move the staged ``names`` into ``out``; on any failure undo every move made."""
+    backup = stage / ".replaced"
+    backup.mkdir()
+    replaced: list[str] = []
+    placed: list[str] = []
+    try:
+        for name in names:
+            dest = out / name
+            if os.path.lexists(dest):
+                os.replace(dest, backup / name)
+                replaced.append(name)
+            os.replace(stage / name, dest)
+            placed.append(name)
+    except BaseException:
+        for name in placed:
+            try:
+                os.unlink(out / name)
+            except OSError:
+                pass
+        for name in replaced:
+            try:
+                os.replace(backup / name, out / name)
+            except OSError:
+                pass
+        raise

@@ -1,6 +1,9 @@
 """``staghunt export``: every mission file of a plan, built in memory, then written atomically.
 
-Nothing is written unless every file could be built; each file is replaced atomically. An
+Nothing is written unless every file could be built, and the set is written as one
+(:func:`staghunt.io.atomic.write_file_set`): staged in the output directory, then moved into
+place; a failure or an interrupt leaves the directory as it was. The paths are checked against
+the embedded scenario with ``evaluate``'s check (the stored status is not trusted). An
 infeasible plan, trajectories that break a limit in time, or (with ``simulate``) a simulated
 flight that does, are refused unless ``force``; then every file that has a place for it says
 so, and ``MISSION_UNSAFE.txt`` lists why.
@@ -25,10 +28,11 @@ from typing import Any
 import numpy as np
 
 from staghunt.costs import CostModel
+from staghunt.costs.model import full_paths, to_absolute
 from staghunt.flight.mission import MissionFlight, fly_mission, read_trajectories_csv
 from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
 from staghunt.geo.geoid import GEOID_MODEL, geoid_height, geoid_source
-from staghunt.io.atomic import atomic_file, check_replaceable, write_text_atomic
+from staghunt.io.atomic import write_file_set
 from staghunt.missions import formats as fm
 from staghunt.trajectory import SafetyReport, Trajectories, time_and_check
 
@@ -101,6 +105,7 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     :class:`~staghunt.missions.formats.TargetLimitError`), :class:`ExportRefused` for an
     infeasible or unsafe plan without ``force``."""
     from staghunt.analysis.certify import plan_from_result_data
+    from staghunt.io.paths_json import evaluate_paths, paths_from_result
     from staghunt.io.result_json import read_result
 
     t0 = time.perf_counter()
@@ -120,12 +125,20 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
         raise ValueError("--out must not be empty")
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {str(out)!r} exists and is not a directory")
-    paths = np.array([u["path"] for u in data["uavs"]], dtype=float)  # (N, K + 2, 3) absolute
+    # The stored status is not trusted: the paths are checked against the embedded scenario
+    # with evaluate's own check (starts and goals the scenario's, the site box, obstacles,
+    # ground, ceiling, separation), and the absolute paths rebuilt from it.
+    wp = paths_from_result(data, scenario, str(result_path))  # ValueError: not this scenario's ends
+    checked = evaluate_paths(scenario, wp)
     names = [u.name for u in scenario.team]
     model = CostModel.from_scenario(scenario)
+    paths = to_absolute(model.terrain, full_paths(model, wp[None]))[0]  # (N, K + 2, 3) absolute
+    _check_duration(paths, scenario.vehicle, str(result_path))
     traj, safety = time_and_check(model, paths, scenario.vehicle, names)
     problems = []
-    if data.get("status") != "feasible":
+    if checked["status"] != "feasible":
+        problems += [f"the paths are infeasible in the embedded scenario: {v}" for v in checked["violations"]]
+    elif data.get("status") != "feasible":
         problems.append(f"the plan is {data.get('status')!r}: {data.get('message', '')}")
     problems += list(safety.problems)
     if problems and not force:
@@ -151,31 +164,40 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     if flight is not None:
         summary["flight"] = _flight_summary(flight, names)
     files["mission.json"] = json.dumps(summary, indent=1) + "\n"
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-        for name in files:
-            check_replaceable(out / name)
-        written = []
-        for name, content in files.items():
-            target = out / name
-            if isinstance(content, bytes):
-                with atomic_file(target, "wb") as fh:
-                    fh.write(content)
-            else:
-                write_text_atomic(content, target)
-            written.append(target)
-    except OSError as exc:
-        raise ValueError(f"cannot write to {str(out)!r}: {exc.strerror or exc}") from None
-    if plots:
+    def figures(stage: Path) -> list[Path]:
         from staghunt.plots.mission import save_mission_figures
 
-        written += save_mission_figures(traj, scenario, out)
+        return list(save_mission_figures(traj, scenario, stage))
+
+    try:  # the whole set or nothing: staged beside the target, then moved into place
+        written = write_file_set(out, files, figures if plots else None)
+    except OSError as exc:
+        raise ValueError(f"cannot write to {str(out)!r}: {exc.strerror or exc}") from None
     return ExportReport(files=tuple(written), origin=origin, duration=traj.duration, stretch=traj.stretch,
                         max_speed=tuple(float(v) for v in traj.max_speed),
                         max_acceleration=tuple(float(v) for v in traj.max_acceleration),
                         safety=safety, bound=traj.bound, merged=traj.merged, flight=flight,
                         warnings=tuple(problems), seconds=time.perf_counter() - t0,
                         altitude_frame=frame, geoid_height=float(summary["origin"]["geoid_height_m"]))
+
+
+MAX_MISSION_SECONDS = 3600.0
+"""Longest mission the timing is asked for (its reference bound, s): beyond any multirotor's
+battery, and a timed sampling of it (milliseconds) would not fit in memory."""
+
+
+def _check_duration(paths: np.ndarray, vehicle: Any, source: str) -> None:
+    """Refuse (``ValueError``, one line naming the ``[vehicle]`` key) a mission whose reference
+    duration (longest path / cruise speed + cruise / max acceleration) exceeds
+    :data:`MAX_MISSION_SECONDS`: a speed of micrometres per second, not the budget, is the cause."""
+    longest = float(np.linalg.norm(np.diff(paths, axis=1), axis=-1).sum(axis=-1).max())
+    bound = longest / vehicle.cruise_speed + vehicle.cruise_speed / vehicle.max_acceleration
+    if not bound <= MAX_MISSION_SECONDS:
+        raise ValueError(
+            f"{source}: the mission would last at least {bound:.3g} s (the longest path, {longest:.6g} m, at "
+            f"vehicle.cruise_speed = {vehicle.cruise_speed:g} m/s with vehicle.max_speed = {vehicle.max_speed:g} m/s "
+            f"and max_acceleration = {vehicle.max_acceleration:g} m/s^2), more than {MAX_MISSION_SECONDS:g} s; "
+            "check the scenario's [vehicle] table")
 
 
 def _refused(result_path: str, problems: list[str]) -> ExportRefused:

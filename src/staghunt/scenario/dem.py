@@ -3,6 +3,7 @@ the site box. Failures raise :class:`ScenarioError` naming the ``ground`` key at
 
 from __future__ import annotations
 
+import errno
 import hashlib
 import math
 from pathlib import Path
@@ -14,6 +15,57 @@ from staghunt.scenario.errors import fmt as _fmt
 from staghunt.world import Bounds, GeoOrigin, Terrain
 
 DEM_SUFFIXES = (".npy", ".tif", ".tiff")
+
+ELEVATION_RANGE = (-500.0, 10000.0)
+"""Elevations (m above mean sea level) a geo-referenced DEM may hold under the site: the range of
+an ``[origin]`` altitude. A value beyond it is a unit error or an undeclared nodata value."""
+
+MAX_GRID_NODES = 16_000_000
+"""Most nodes of the site grid a GeoTIFF is resampled into (128 MB of float64): a larger one
+comes from a ``cell_size`` far finer than any DEM needs."""
+
+
+def resolve_file(path: Path, key: str, what: str) -> Path:
+    """``path`` made absolute with its symbolic links resolved; :class:`ScenarioError` naming
+    ``key`` for a symlink loop or a path the system refuses (too long, ...)."""
+    try:
+        return path.resolve()
+    except RuntimeError:  # Python < 3.13: "Symlink loop from ..."
+        raise ScenarioError(f"{what} {str(path)!r} is a symbolic link loop", key) from None
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise ScenarioError(f"{what} {str(path)!r} is a symbolic link loop", key) from None
+        raise ScenarioError(f"cannot open {what} {str(path)!r}: {exc.strerror or exc}", key) from None
+
+
+def file_digest(path: Path, key: str) -> str:
+    """SHA-256 of a file's bytes (read in blocks)."""
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as fh:
+            for block in iter(lambda: fh.read(1 << 20), b""):
+                h.update(block)
+    except OSError as exc:
+        raise ScenarioError(f"cannot read {str(path)!r}: {exc.strerror or exc}", key) from None
+    return h.hexdigest()
+
+
+def grid_size(b: Bounds, cell_size: float, key: str = "ground.cell_size") -> tuple[int, int]:
+    """``(rows, cols)`` of the site grid at ``cell_size``; :class:`ScenarioError` when it would
+    exceed :data:`MAX_GRID_NODES` (a too fine ``cell_size``, not a memory budget, is the cause)."""
+    span_x, span_y = b.xmax - b.xmin, b.ymax - b.ymin
+    nx, ny = span_x / cell_size, span_y / cell_size
+    if not (math.isfinite(nx) and math.isfinite(ny)) or (nx + 1) * (ny + 1) > MAX_GRID_NODES:
+        finest = math.sqrt(max(span_x, 1e-9) * max(span_y, 1e-9) / MAX_GRID_NODES)
+        count = (nx + 1) * (ny + 1)
+        nodes = f"about {count:.3g}" if math.isfinite(count) else "more than 1e308"
+        raise ScenarioError(
+            f"cell_size = {_fmt(cell_size)} m would resample the {_fmt(span_x)} x {_fmt(span_y)} m site into "
+            f"a grid of {nodes} nodes (at most {MAX_GRID_NODES:.3g}); use a cell_size "
+            f">= {finest:.3g} m (the ground needs no finer grid than its DEM's pixels)", key)
+    cols = int(math.ceil(nx - 1e-9)) + 1
+    rows = int(math.ceil(ny - 1e-9)) + 1
+    return rows, cols
 
 
 def read_dem_array(path: Path, key: str) -> np.ndarray:
@@ -109,19 +161,24 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
     in metres above mean sea level, is given)."""
     import rasterio  # heavy import, only for this kind of ground
     import rasterio.windows
+    from rasterio.enums import Resampling
     from rasterio.errors import RasterioIOError
 
     from staghunt.world.georef import site_to_crs
 
     if not path.is_file():
         raise ScenarioError(f"no such DEM file {str(path)!r}", key)
-    cols = int(math.ceil((b.xmax - b.xmin) / cell_size - 1e-9)) + 1
-    rows = int(math.ceil((b.ymax - b.ymin) / cell_size - 1e-9)) + 1
+    lo, hi = ELEVATION_RANGE
+    if nodata_fill is not None and not lo <= nodata_fill <= hi:
+        raise ScenarioError(f"must be an elevation in [{_fmt(lo)}, {_fmt(hi)}] m above mean sea level, "
+                            f"got {_fmt(nodata_fill)}", "ground.nodata_fill")
+    rows, cols = grid_size(b, cell_size)
     xs = b.xmin + cell_size * np.arange(cols)
     ys = b.ymin + cell_size * np.arange(rows)
     gx, gy = np.meshgrid(xs, ys)  # (rows, cols)
     try:
-        with rasterio.open(path) as src:
+        # A small block cache: a decimated read passes every tile of the window through it.
+        with rasterio.Env(GDAL_CACHEMAX=64), rasterio.open(path) as src:
             if src.crs is None:
                 raise ScenarioError(
                     f"the DEM {str(path)!r} has no CRS (coordinate reference system); "
@@ -141,23 +198,37 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
                     f"x [{_fmt(b.xmin)}, {_fmt(b.xmax)}], y [{_fmt(b.ymin)}, {_fmt(b.ymax)}] around the "
                     f"origin ({_fmt(origin.latitude)}, {_fmt(origin.longitude)}): site point "
                     f"x={_fmt(gx[i, j])}, y={_fmt(gy[i, j])} lies outside it", key)
-            # Read only the window of pixels the site needs (a DEM may be far larger than the site).
-            c0 = max(int(math.floor(u.min())) - 1, 0)
-            r0 = max(int(math.floor(v.min())) - 1, 0)
-            c1 = min(int(math.ceil(u.max())) + 2, width)
-            r1 = min(int(math.ceil(v.max())) + 2, height)
-            window = rasterio.windows.Window(c0, r0, c1 - c0, r1 - r0)
-            values = src.read(1, window=window, masked=True).astype(np.float64)
+            # Read only the window of pixels the site needs (a DEM may be far larger than the site),
+            # and no finer than about two pixels per grid cell: GDAL averages (or uses an overview)
+            # rather than handing over every pixel of a fine DEM.
+            pixels_per_metre = max(math.hypot(inverse.a, inverse.d), math.hypot(inverse.b, inverse.e)) * _crs_units_per_metre(
+                X, Y, gx, gy)
+            factor = pixels_per_metre * cell_size / 2.0  # > 1: more than two pixels per grid cell
+            pad = 1 + (int(math.ceil(factor)) if factor > 1.5 else 0)  # a (decimated) pixel beyond the nodes
+            c0 = max(int(math.floor(u.min())) - pad, 0)
+            r0 = max(int(math.floor(v.min())) - pad, 0)
+            c1 = min(int(math.ceil(u.max())) + pad + 1, width)
+            r1 = min(int(math.ceil(v.max())) + pad + 1, height)
+            win_w, win_h = c1 - c0, r1 - r0
+            window = rasterio.windows.Window(c0, r0, win_w, win_h)
+            u = u - c0
+            v = v - r0
+            if factor > 1.5:
+                out_w, out_h = max(2, int(math.ceil(win_w / factor))), max(2, int(math.ceil(win_h / factor)))
+                values = src.read(1, window=window, masked=True, out_shape=(out_h, out_w),
+                                  resampling=Resampling.average)
+                u = (u + 0.5) * out_w / win_w - 0.5
+                v = (v + 0.5) * out_h / win_h - 0.5
+            else:
+                values = src.read(1, window=window, masked=True)
     except ScenarioError:
         raise
     except RasterioIOError as exc:
         raise ScenarioError(f"cannot read {str(path)!r} as a raster: {exc}", key) from None
     except Exception as exc:  # noqa: BLE001 - any other reader failure is bad input too
         raise ScenarioError(f"cannot read {str(path)!r} as a raster: {exc}", key) from None
-    grid_values = np.ma.getdata(values)
+    grid_values = np.asarray(np.ma.getdata(values), dtype=np.float64)
     missing = np.ma.getmaskarray(values) | ~np.isfinite(grid_values)
-    u = u - c0
-    v = v - r0
     height, width = grid_values.shape
     u = np.clip(u, 0.0, width - 1.0)
     v = np.clip(v, 0.0, height - 1.0)
@@ -177,6 +248,15 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
                 "give ground.nodata_fill or a DEM without holes there", key)
         grid_values = np.where(missing, float(nodata_fill), grid_values)
     g = grid_values
+    used = np.stack([g[i0, j0], g[i0, j1], g[i1, j0], g[i1, j1]])
+    bad = ~((used >= lo) & (used <= hi)).all(axis=0)
+    if bad.any():
+        i, j = np.argwhere(bad)[0]
+        worst = used[:, i, j][np.argmax(np.abs(used[:, i, j] - 0.5 * (lo + hi)))]
+        raise ScenarioError(
+            f"the DEM {str(path)!r} holds an elevation of {float(worst):.6g} m near site x={_fmt(gx[i, j])}, "
+            f"y={_fmt(gy[i, j])}; elevations must lie in [{_fmt(lo)}, {_fmt(hi)}] m above mean sea level "
+            "(wrong units, or a nodata value the file does not declare?)", key)
     top = g[i0, j0] * (1 - fu) + g[i0, j1] * fu
     bottom = g[i1, j0] * (1 - fu) + g[i1, j1] * fu
     z = top * (1 - fv) + bottom * fv - origin.altitude
@@ -184,4 +264,13 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
     z.setflags(write=False)
     return Terrain(elevation=z, origin=(float(b.xmin), float(b.ymin)), cell_size=float(cell_size),
                    sampling=sampling,  # type: ignore[arg-type]
-                   source=str(path), georef={"kind": "geotiff", "nodata_fill": nodata_fill})
+                   source=str(path), georef={"kind": "geotiff", "nodata_fill": nodata_fill,
+                                             "sha256": file_digest(path, key)})
+
+
+def _crs_units_per_metre(X: np.ndarray, Y: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> float:
+    """CRS units per site metre, from the grid's extent in both (about 1 for a projected CRS in
+    metres, about 1 / 111,000 for one in degrees)."""
+    site = math.hypot(float(gx.max() - gx.min()), float(gy.max() - gy.min()))
+    crs = math.hypot(float(np.ptp(X)), float(np.ptp(Y)))
+    return crs / site if site > 0 and crs > 0 else 1.0

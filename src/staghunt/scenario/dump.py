@@ -41,6 +41,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             "cell_size": float(terrain.cell_size),
             "sampling": terrain.sampling,
             "nodata_fill": terrain.georef.get("nodata_fill"),
+            "sha256": terrain.georef.get("sha256"),
         }
     else:
         ground = {

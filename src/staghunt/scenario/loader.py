@@ -25,7 +25,13 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from staghunt.scenario.dem import check_dem_covers, grid_digest, read_dem_array, read_geotiff_terrain
+from staghunt.scenario.dem import (
+    check_dem_covers,
+    grid_digest,
+    read_dem_array,
+    read_geotiff_terrain,
+    resolve_file,
+)
 from staghunt.scenario.errors import ScenarioError, fmt
 from staghunt.scenario.model import CostParams, Scenario, SolverSettings
 from staghunt.task import UAV, Formation, VehicleLimits, Weights, is_connected
@@ -125,13 +131,18 @@ def _terrain(ground: Ground, base_dir: Path | None, bounds: Bounds, origin: GeoO
     file = Path(ground.file).expanduser()
     if not file.is_absolute() and base_dir is not None:
         file = base_dir / file
-    file = file.resolve()
+    file = resolve_file(file, "ground.file", "the DEM file")
     if ground.kind == "geotiff":
         if origin is None:
             raise ScenarioError("kind = 'geotiff' needs the [origin] table (the site frame's geodetic origin)",
                                 "ground.kind")
-        return read_geotiff_terrain(file, origin, bounds, ground.cell_size, ground.sampling,
-                                    ground.nodata_fill, "ground.file")
+        terrain = read_geotiff_terrain(file, origin, bounds, ground.cell_size, ground.sampling,
+                                       ground.nodata_fill, "ground.file")
+        assert terrain.georef is not None
+        if ground.sha256 is not None and ground.sha256.lower() != terrain.georef["sha256"]:
+            raise ScenarioError(
+                f"the GeoTIFF {str(file)!r} does not match this checksum (file changed?)", "ground.sha256")
+        return terrain
     grid = read_dem_array(file, "ground.file")
     # Optional integrity checks (scenario_to_dict writes them).
     if ground.shape is not None and tuple(ground.shape) != grid.shape:

@@ -97,7 +97,7 @@ class Ground(_Table):
     sampling: Literal["nearest", "bilinear"] = "nearest"
     shape: Optional[list[int]] = Field(None, description="integrity check: [rows, columns] of the grid")
     dtype: Optional[str] = Field(None, description="integrity check: dtype of the grid")
-    sha256: Optional[str] = Field(None, description="integrity check: SHA-256 of the grid's bytes")
+    sha256: Optional[str] = Field(None, description="integrity check: SHA-256 of the grid's bytes (dem) or of the file (geotiff)")
 
     @model_validator(mode="after")
     def _kind_keys(self) -> "Ground":
@@ -108,7 +108,7 @@ class Ground(_Table):
         elif self.file is None:
             raise _fail("file", "required key is missing")
         if self.kind == "geotiff":
-            for key in ("origin", "shape", "dtype", "sha256"):
+            for key in ("origin", "shape", "dtype"):
                 if key in self.model_fields_set:
                     raise _fail(key, "not used with kind = 'geotiff' (the DEM's CRS and [origin] place the grid)")
         elif self.nodata_fill is not None:
