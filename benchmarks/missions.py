@@ -3,6 +3,7 @@
     python benchmarks/missions.py                      # scenario2, site_wedge; seeds 1-3; both budgets
     python benchmarks/missions.py --no-fly             # timing only (seconds, not minutes)
     python benchmarks/missions.py --scenarios scenario2 --seeds 1 --budgets small
+    python benchmarks/missions.py --fly-seeds 1        # fly seed 1 only (8 UAVs fly for minutes)
 
 For every scenario, seed and budget (``small`` = 200 particles x 100 iterations; ``own`` = the
 scenario's ``[solver]`` setting: the paper's 2000 x 1500 on scenario 2, 400 x 300 on
@@ -108,13 +109,16 @@ def main() -> None:
     ap.add_argument("--seeds", default="1-3")
     ap.add_argument("--budgets", default="small,own")
     ap.add_argument("--no-fly", action="store_true")
+    ap.add_argument("--fly-seeds", default=None,
+                    help="fly only these seeds (default: every seed; a flight of 8 UAVs takes minutes)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     rows = []
     for name in args.scenarios.split(","):
         for budget in args.budgets.split(","):
             for seed in _seeds(args.seeds):
-                row = run(name, seed, budget, not args.no_fly)
+                fly = not args.no_fly and (args.fly_seeds is None or seed in _seeds(args.fly_seeds))
+                row = run(name, seed, budget, fly)
                 rows.append(row)
                 print(table([row]).splitlines()[-1], flush=True)
     ratios = [r["ratio"] for r in rows]
