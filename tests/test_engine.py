@@ -334,3 +334,42 @@ def test_numba_plan_keeps_the_paths_the_kernel_evaluated():
     result = staghunt.plan(scenario, "game", seed=3, settings=settings, engine="numba", threads=1)
     assert result.engine == "numba"
     np.testing.assert_allclose(result.costs.total[0], result.history[-1], rtol=1e-9)
+
+
+@pytest.mark.parametrize("radii", [None, (1.0, 2.5, 0.5, 1.0, 3.0, 1.0)])
+@pytest.mark.parametrize("n_uavs", [3, 6])
+def test_deviation_costs_match_the_full_evaluation(n_uavs, radii):
+    """The compiled deviation evaluation (``MODE_DEVIATE``, used by ``game``'s polish) gives the
+    full evaluation's ``J_n`` bit for bit and ``inf`` exactly where its total violation is not
+    zero, for paths that hit team-mates (different radii: a deficit seen by one UAV only),
+    obstacles and the ground, with and without pair pruning (N > 4)."""
+    import dataclasses
+
+    from staghunt.solvers.game import _own_costs
+
+    model = make_model(n_uavs)
+    # No cylinder: the straight start-goal lines (10 m apart) are a feasible plan.
+    model = dataclasses.replace(model, cylinders=frozen(np.zeros((0, 3))))
+    if radii is not None:
+        model = dataclasses.replace(model, radius=frozen(np.array(radii[:n_uavs])))
+    K = 6
+    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
+    plan0 = model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+    rng = np.random.default_rng(3)
+    engine = NumbaEngine(threads=1)
+    for n in range(n_uavs):
+        plan_n = plan0.copy()
+        full = evaluate(model, plan_n[None])
+        if full.total_violation[0] != 0:
+            continue
+        paths = plan_n[n][None] + rng.normal(0.0, [6.0, 6.0, 8.0], size=(40, K, 3)) * np.linspace(0.05, 1.0, 40)[:, None, None]
+        mate = (n + 1) % n_uavs
+        paths[0] = plan_n[mate]  # on a team-mate's waypoints
+        limits = 2.0 + 2.0 * model.radius  # d_s + 2 r
+        paths[1] = plan_n[mate] + np.array([0.5 * (limits[n] + limits[mate]) + 0.25, 0.0, 0.0])
+        paths[2, :, 2] = -1.0  # below ground
+        got = engine.deviations(model, plan_n, n)(paths)
+        want = _own_costs(model, plan_n, n, paths, engine.evaluate)
+        assert np.array_equal(np.isinf(got), np.isinf(want))
+        assert np.array_equal(got, want)
+        assert np.isinf(got).any() and np.isfinite(got).any()
