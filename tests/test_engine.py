@@ -265,9 +265,13 @@ def test_decoding_and_objectives_agree_with_problem(kind):
         np.testing.assert_allclose(cost[fin], want_cost[i][fin], rtol=1e-9)
 
 
-def test_same_seed_same_result_for_any_thread_count():
+@pytest.mark.parametrize("particles", [70, 230])  # one thread below MIN_SHARED_PARTICLES; blocks split unevenly
+def test_same_seed_same_result_for_any_thread_count(particles):
+    from staghunt.engine.numba_engine import MIN_SHARED_PARTICLES
+
+    assert 70 < MIN_SHARED_PARTICLES <= 230
     _, problem = scenario2_problem()
-    settings = SolverSettings(particles=70, iterations=6, waypoints=10)  # blocks split unevenly
+    settings = SolverSettings(particles=particles, iterations=30, waypoints=10)
     outs = [NumbaEngine(threads=t).run_swarm(problem, settings, np.random.default_rng(42)) for t in (1, 2, 3, 1)]
     for out in outs[1:]:
         assert np.array_equal(out.best, outs[0].best)

@@ -494,7 +494,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     bounding boxes over the block's lanes lie farther apart than its separation limit are
     skipped (exact; see the comment in the body). With ``solo`` (a problem with
     fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``
-    (``every``: the collisions of all UAVs, from those pairs).
+    (``every``: the collisions of all UAVs, from those pairs), and pairs are pruned at any N.
     """
     N = px.shape[0]
     K = px.shape[1] - 2
@@ -542,11 +542,13 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     # its distances there cannot make a collision or a deficit: they are skipped (an entry of
     # ``near2``/``seg2`` may then stay above its true value, but only where both exceed every
     # limit, which decides nothing). Exact: the same collisions, deficits and J_f.
-    prune = N > PRUNE_MIN_UAVS
+    prune = N > PRUNE_MIN_UAVS or solo
     box = np.empty((6, N, S)) if prune else np.empty((6, 1, 1))
     near = np.ones(S, dtype=np.bool_)
     if prune:
         for n in range(N):
+            # With ``solo`` a UAV other than the players has one fixed path in every lane.
+            lanes = nb if not solo or _is_player(players, n) else min(nb, 1)
             for j in range(S):
                 x0 = np.inf
                 x1 = -np.inf
@@ -555,7 +557,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 z0 = np.inf
                 z1 = -np.inf
                 for i in range(j, j + 2):
-                    for b in range(nb):
+                    for b in range(lanes):
                         x0 = min(x0, px[n, i, b])
                         x1 = max(x1, px[n, i, b])
                         y0 = min(y0, py[n, i, b])

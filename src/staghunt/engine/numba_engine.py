@@ -361,6 +361,11 @@ def _run(
     )
 
 
+MIN_SHARED_PARTICLES = 200
+"""A swarm with fewer particles runs on one thread: its iteration (tens of microseconds) is too
+short to pay for waking a second thread and meeting it at the barrier (``game``'s smallest
+replies; measured slower on two threads)."""
+
 CHUNK_ITERATIONS = 25
 """Most iterations of a swarm run per call of the compiled loop (:func:`kernels.iterate`):
 between calls the thread count may change, progress is reported and Ctrl-C is honoured."""
@@ -491,7 +496,8 @@ class NumbaEngine:
     ) -> SwarmOutcome:
         """Same contract as :func:`staghunt.solvers.swarm.run_swarm`."""
         self.prepare()
-        control = AdaptiveThreads(usable_cores(), self.threads)
+        shared = settings.particles >= MIN_SHARED_PARTICLES
+        control = AdaptiveThreads(usable_cores() if shared else 1, self.threads if shared or self.threads is None else 1)
         out = _run(problem, settings, rng, progress, initial, control)
         self.last_threads = control.summary()
         return out
