@@ -8,7 +8,10 @@ Two entry points run one block of ``nb <= B`` particles, in this order:
 - :func:`team_pass`: formation cost and separation (eqs. 5-7), ``J_n``, then the personal bests
   (or, in ``MODE_EVALUATE``, the outputs of the twin of :func:`staghunt.costs.evaluate`).
 
-:func:`select_global` then picks the global best. Intermediate results stay in the block's
+:func:`select_global` then picks the global best. :func:`iterate` runs stretches of a swarm's
+iterations in one call (both entries over all blocks, serially or in a ``prange`` over the
+blocks, then the global best), so a small swarm pays no per-block dispatch from Python and no
+Python-level barrier per iteration. Intermediate results stay in the block's
 scratch arrays (:class:`staghunt.engine.numba_engine.Scratch`). The parts of each entry are
 :func:`~staghunt.engine.jit.subroutine` s, compiled only as part of it; the two entries are
 compiled in parallel processes the first time (see :func:`staghunt.engine.numba_engine.prepare`).

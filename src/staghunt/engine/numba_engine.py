@@ -46,9 +46,11 @@ spinning thread takes the core from the thread that everyone waits for at the ba
 (measured: 2 threads 3.4x slower than 1 with the default spin on a loaded 2-core VM). Read by
 the OpenMP runtime when Numba first loads it; set it beforehand to override."""
 
-COLD_COMPILE_ESTIMATE_S = 15
-"""Announced one-time compile (measured 12 s in two processes, 20 s in one, on a 2-core machine;
-see ``benchmarks/``)."""
+COLD_COMPILE_ESTIMATE_S = 60
+"""Announced one-time compile (measured 12.7 s in two processes before the compiled iteration
+loop ``iterate``, which re-optimises both kernel entries inside it; with it 77-98 s on the 2-core
+machine of issue 17 at load 3.5-4.6, about 43 s of CPU for ``iterate`` alone; see
+``benchmarks/README.md``)."""
 
 NOTIFY_AFTER_S = 1.0
 """When the cache index cannot be read: loading every kernel from a warm cache takes well under
