@@ -287,20 +287,24 @@ class Deviations:
         self.sa = SwarmArrays(sw=np.zeros((0, 22)), member=member, offsets=np.zeros((N, 3)),
                               fixed=np.zeros((N, K, 3)), players=np.array([n], dtype=np.int64))
         self.plan, self.n = plan, n
+        self._runs: dict[int, _Pass] = {}
+        self._scratch: Scratch | None = None
 
     def __call__(self, paths: np.ndarray) -> np.ndarray:
         """``(Q,)`` ``J_n`` for ``paths`` ``(Q, K, 3)``; ``inf`` where infeasible."""
-        N, K = self.plan.shape[0], self.plan.shape[1]
-        team = np.repeat(self.plan[None], len(paths), axis=0)
-        team[:, self.n] = paths
-        run = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
-        run.mode = kn.MODE_DEVIATE
-        run.ensure_scratch(1)
-        try:
-            run.work(0, len(paths), 0)
-        finally:
-            run.release()
-        clear = np.all(run.vio_out.reshape(len(paths), -1) == 0, axis=1)
+        Q = len(paths)
+        run = self._runs.get(Q)
+        if run is None:  # one pass per batch size (a polish sweep, its combined move), reused
+            N, K = self.plan.shape[0], self.plan.shape[1]
+            team = np.repeat(self.plan[None], Q, axis=0)
+            run = self._runs[Q] = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
+            run.mode = kn.MODE_DEVIATE
+            if self._scratch is None:
+                self._scratch = Scratch(N, K, 0, run.B)
+            run.scratch = [self._scratch]
+        run.wp[:, self.n] = paths
+        run.work(0, Q, 0)
+        clear = np.all(run.vio_out.reshape(Q, -1) == 0, axis=1)
         return np.where(clear, run.res_out[:, 2, self.n], np.inf)
 
 
