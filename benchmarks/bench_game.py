@@ -114,12 +114,12 @@ def certified(seed: int) -> dict:
 
 def report(per: list[dict], small: list[dict], cert: list[dict], meta: dict) -> str:
     med = lambda rows, k: statistics.median(r[k] for r in rows)  # noqa: E731
-    out = [f"{meta['date']}, {meta['cpus']} CPUs, load average {meta['load_start'][0]:.2f} at the start, "
-           f"{meta['load_end'][0]:.2f} at the end; source {meta['source']}.", ""]
+    out = [(f"{meta['date']}, {meta['cpus']} CPUs, load average {meta['load_start'][0]:.2f} at the start, "
+            f"{meta['load_end'][0]:.2f} at the end; source {meta['source']}."), ""]
     out += ["## 1. Per path evaluation, 1 and 2 threads (pinned)", "",
-            "| scenario | seed | paper ns/eval 1t | game ns/eval 1t | game/paper 1t | game/paper 1t, CPU time | "
-            "paper ns/eval 2t | game ns/eval 2t | game/paper 2t | paper 2t speed-up | game 2t speed-up | "
-            "certificate / search | gap |",
+            ("| scenario | seed | paper ns/eval 1t | game ns/eval 1t | game/paper 1t | game/paper 1t, CPU time | "
+             "paper ns/eval 2t | game ns/eval 2t | game/paper 2t | paper 2t speed-up | game 2t speed-up | "
+             "certificate / search | gap |"),
             "|" + "---|" * 13]
     for r in per:
         out.append(f"| {r['scenario']} | {r['seed']} | {r['ns_paper_1t']:.0f} | {r['ns_game_1t']:.0f} | "
@@ -127,10 +127,11 @@ def report(per: list[dict], small: list[dict], cert: list[dict], meta: dict) -> 
                    f"{r['paper_speedup']:.2f} | {r['game_speedup']:.2f} | {r['certificate_share']:.1%} | "
                    f"{r['max_relative_gap']:.2%} |")
     if per:
-        out += ["", f"Medians: game/paper per evaluation {med(per, 'ratio_1t'):.2f} (1 thread; "
-                f"{med(per, 'cpu_ratio_1t'):.2f} in CPU time), "
-                f"{med(per, 'ratio_2t'):.2f} (2 threads); 2-thread speed-up paper {med(per, 'paper_speedup'):.2f}, "
-                f"game {med(per, 'game_speedup'):.2f}; certificate / search {med(per, 'certificate_share'):.1%}.", ""]
+        out += ["", (f"Medians: game/paper per evaluation {med(per, 'ratio_1t'):.2f} (1 thread; "
+                     f"{med(per, 'cpu_ratio_1t'):.2f} in CPU time), "
+                     f"{med(per, 'ratio_2t'):.2f} (2 threads); 2-thread speed-up paper "
+                     f"{med(per, 'paper_speedup'):.2f}, game {med(per, 'game_speedup'):.2f}; "
+                     f"certificate / search {med(per, 'certificate_share'):.1%}."), ""]
     if small:
         out += ["## 2. game at 500 x 300, scenario 2", "", "| seed | 1 thread s | 2 threads s | speed-up |", "|---|---|---|---|"]
         out += [f"| {r['seed']} | {r['game_s_1t']:.2f} | {r['game_s_2t']:.2f} | {r['speedup']:.2f} |" for r in small]

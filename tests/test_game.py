@@ -165,7 +165,7 @@ def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduc
 
     _, game, _ = reduced
     runner = get_engine("numba", threads=1).run_swarm
-    kw = dict(particles=60, iterations=20, seed=4, runner=runner)
+    kw = {"particles": 60, "iterations": 20, "seed": 4, "runner": runner}
     one = certify_plan(scenario1, game.waypoints, workers=1, **kw)
     two = certify_plan(scenario1, game.waypoints, workers=2, **kw)
     assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in two.uavs]

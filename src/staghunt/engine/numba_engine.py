@@ -25,26 +25,30 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterable, Iterator
 
 import numpy as np
 
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import ModelArrays, SwarmArrays, model_arrays, swarm_arrays
+from staghunt.engine.loop import (
+    CHUNK_ITERATIONS,
+    MIN_SHARED_PARTICLES,
+    iterate_chunk,
+    kernel_threads,
+    parallel_block,
+)
 from staghunt.engine.scratch import Scratch, borrow, give_back
 from staghunt.engine.threads import AdaptiveThreads, usable_cores
 from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.swarm import Progress, SwarmOutcome
 
-logger = logging.getLogger("staghunt.engine")
+if TYPE_CHECKING:
+    from staghunt.engine.deviations import Deviations
 
-os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
-"""Idle OpenMP threads (Numba's ``omp`` layer) sleep instead of spinning: on a shared machine a
-spinning thread takes the core from the thread that everyone waits for at the barrier
-(measured: 2 threads 3.4x slower than 1 with the default spin on a loaded 2-core VM). Read by
-the OpenMP runtime when Numba first loads it; set it beforehand to override."""
+logger = logging.getLogger("staghunt.engine")
 
 COLD_COMPILE_ESTIMATE_S = 60
 """Announced one-time compile (measured 12.7 s in two processes before the compiled iteration
@@ -165,7 +169,7 @@ def _tiny(entries: Iterable[str]) -> None:
         hist = np.zeros((3, N))
         for threads in sorted({1, min(2, kernel_threads())}):  # the serial loop, then the parallel one
             stack = Scratch(N, K, N, run.B, 2)
-            _iterate(0, 3, run.B, threads, np.uint64(1), np.array([0.7, 0.0, 0.9]), run, np.zeros((N, 1)),
+            iterate_chunk(0, 3, run.B, threads, np.uint64(1), np.array([0.7, 0.0, 0.9]), run, np.zeros((N, 1)),
                      hist, np.zeros((3, N)), np.zeros(3), stack)
 
 
@@ -268,46 +272,6 @@ def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
                  total=res[:, 2].copy(), violation=run.vio_out)
 
 
-class Deviations:
-    """``J_n`` of UAV ``n``'s candidate paths with the others' paths of ``plan`` ``(N, K, 3)``
-    fixed: the compiled twin of :func:`staghunt.solvers.game._own_costs` for a plan whose
-    other UAVs are clear of each other and of every obstacle (a feasible plan), evaluating only
-    UAV ``n``'s path and its pairs (``MODE_DEVIATE``). Bit-identical to the full evaluation's
-    ``J_n``, and ``inf`` exactly where the full evaluation's total violation is not zero."""
-
-    def __init__(self, model: CostModel, plan: np.ndarray, n: int) -> None:
-        plan = np.array(plan, dtype=np.float64, order="C", copy=True)
-        N, K = plan.shape[0], plan.shape[1]
-        ma = _model_arrays_cached(model)
-        c = evaluate(model, plan[None])
-        constants = np.concatenate([c.terms[0], c.violation[0][:, :2]], axis=1).ravel()
-        self.ma = replace(ma, par=np.concatenate([ma.par, constants]))
-        member = np.full(N, -1, dtype=np.int64)
-        member[n] = 0
-        self.sa = SwarmArrays(sw=np.zeros((0, 22)), member=member, offsets=np.zeros((N, 3)),
-                              fixed=np.zeros((N, K, 3)), players=np.array([n], dtype=np.int64))
-        self.plan, self.n = plan, n
-        self._runs: dict[int, _Pass] = {}
-        self._scratch: Scratch | None = None
-
-    def __call__(self, paths: np.ndarray) -> np.ndarray:
-        """``(Q,)`` ``J_n`` for ``paths`` ``(Q, K, 3)``; ``inf`` where infeasible."""
-        Q = len(paths)
-        run = self._runs.get(Q)
-        if run is None:  # one pass per batch size (a polish sweep, its combined move), reused
-            N, K = self.plan.shape[0], self.plan.shape[1]
-            team = np.repeat(self.plan[None], Q, axis=0)
-            run = self._runs[Q] = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
-            run.mode = kn.MODE_DEVIATE
-            if self._scratch is None:
-                self._scratch = Scratch(N, K, 0, run.B)
-            run.scratch = [self._scratch]
-        run.wp[:, self.n] = paths
-        run.work(0, Q, 0)
-        clear = np.all(run.vio_out.reshape(Q, -1) == 0, axis=1)
-        return np.where(clear, run.res_out[:, 2, self.n], np.inf)
-
-
 def _run(
     problem: SwarmProblem,
     settings: SolverSettings,
@@ -338,7 +302,7 @@ def _run(
     try:
         def chunk(it0: int, it1: int, threads: int) -> None:
             threads = max(1, min(threads, lanes))
-            _iterate(it0, it1, parallel_block(P, run.B, threads), threads, key, state, run, gcost,
+            iterate_chunk(it0, it1, parallel_block(P, run.B, threads), threads, key, state, run, gcost,
                      history, rhistory, hviol, stack)
 
         chunk(0, 1, control.max_threads)
@@ -365,75 +329,6 @@ def _run(
         history_violation=hviol,
         path_evaluations=problem.path_evaluations(settings),
     )
-
-
-MIN_SHARED_PARTICLES = 200
-"""A swarm with fewer particles runs on one thread: its iteration (tens of microseconds) is too
-short to pay for waking a second thread and meeting it at the barrier (``game``'s smallest
-replies; measured slower on two threads)."""
-
-CHUNK_ITERATIONS = 25
-"""Most iterations of a swarm run per call of the compiled loop (:func:`kernels.iterate`):
-between calls the thread count may change, progress is reported and Ctrl-C is honoured."""
-
-_LAYER_LOCK = threading.Lock()
-
-
-def kernel_threads() -> int:
-    """Threads the compiled parallel loop may use (Numba's ``NUMBA_NUM_THREADS``)."""
-    import numba
-
-    return max(1, int(numba.config.NUMBA_NUM_THREADS))
-
-
-def parallel_block(P: int, B: int, threads: int) -> int:
-    """Lanes per block of a run of ``P`` particles on ``threads`` threads: ``B`` on one thread,
-    else small enough for four blocks per thread (work sharing), a multiple of 8."""
-    if threads <= 1:
-        return B
-    size = -(-P // (4 * threads))
-    return max(8, min(B, -(-size // 8) * 8))
-
-
-def _thread_safe_layer() -> bool:
-    """Whether Numba's threading layer runs parallel loops launched from several Python threads
-    at once (``omp``, ``tbb``; not ``workqueue``, which aborts the process then)."""
-    import numba
-
-    try:
-        return numba.threading_layer() in ("omp", "tbb")
-    except ValueError:  # no parallel loop has run yet
-        return False
-
-
-def _iterate(it0: int, it1: int, bs: int, threads: int, key: np.uint64, state: np.ndarray,
-             run: _Pass, gcost: np.ndarray, history: np.ndarray, rhistory: np.ndarray, hviol: np.ndarray,
-             w: Scratch) -> None:
-    """One call of :func:`kernels.iterate` on ``threads`` threads (serialised across Python
-    threads unless the threading layer is thread-safe; one thread: its serial loop)."""
-    import numba
-
-    ma, sa = run.ma, run.sa
-    parallel = threads > 1
-    safe = not parallel or _thread_safe_layer()
-    if parallel:
-        numba.set_num_threads(threads)
-        numba.set_parallel_chunksize(1)  # blocks handed out one at a time: a slow thread takes fewer
-    if not safe:
-        _LAYER_LOCK.acquire()
-    try:
-        kn.iterate(it0, it1, bs, not parallel, key, state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw,
-                   sa.member, sa.offsets, sa.fixed, ma.par, ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid,
-                   ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, sa.players, run.pcost, run.pviol,
-                   run.cost, run.viol, run.J, gcost, history, rhistory, hviol, w.sww, w.px, w.py, w.pz,
-                   w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc,
-                   w.acc2, w.flag, w.terms, w.vio, w.form, w.hit, w.rx, w.ry, w.rz, w.better, w.res,
-                   run.wp, run.terms_out, run.vio_out, run.res_out)
-    finally:
-        if not safe:
-            _LAYER_LOCK.release()
-        if parallel:
-            numba.set_parallel_chunksize(0)
 
 
 @functools.lru_cache(maxsize=16)
@@ -514,7 +409,10 @@ class NumbaEngine:
         return evaluate(model, waypoints)
 
     def deviations(self, model: CostModel, plan: np.ndarray, n: int) -> Deviations:
-        """UAV ``n``'s deviation costs from the feasible ``plan`` (see :class:`Deviations`)."""
+        """UAV ``n``'s deviation costs from the feasible ``plan`` (see
+        :class:`staghunt.engine.deviations.Deviations`)."""
+        from staghunt.engine.deviations import Deviations
+
         self.prepare()
         return Deviations(model, plan, n)
 
