@@ -265,9 +265,13 @@ def test_decoding_and_objectives_agree_with_problem(kind):
         np.testing.assert_allclose(cost[fin], want_cost[i][fin], rtol=1e-9)
 
 
-def test_same_seed_same_result_for_any_thread_count():
+@pytest.mark.parametrize("particles", [70, 230])  # one thread below MIN_SHARED_PARTICLES; blocks split unevenly
+def test_same_seed_same_result_for_any_thread_count(particles):
+    from staghunt.engine.numba_engine import MIN_SHARED_PARTICLES
+
+    assert 70 < MIN_SHARED_PARTICLES <= 230
     _, problem = scenario2_problem()
-    settings = SolverSettings(particles=70, iterations=6, waypoints=10)  # blocks split unevenly
+    settings = SolverSettings(particles=particles, iterations=30, waypoints=10)
     outs = [NumbaEngine(threads=t).run_swarm(problem, settings, np.random.default_rng(42)) for t in (1, 2, 3, 1)]
     for out in outs[1:]:
         assert np.array_equal(out.best, outs[0].best)
@@ -334,3 +338,42 @@ def test_numba_plan_keeps_the_paths_the_kernel_evaluated():
     result = staghunt.plan(scenario, "game", seed=3, settings=settings, engine="numba", threads=1)
     assert result.engine == "numba"
     np.testing.assert_allclose(result.costs.total[0], result.history[-1], rtol=1e-9)
+
+
+@pytest.mark.parametrize("radii", [None, (1.0, 2.5, 0.5, 1.0, 3.0, 1.0)])
+@pytest.mark.parametrize("n_uavs", [3, 6])
+def test_deviation_costs_match_the_full_evaluation(n_uavs, radii):
+    """The compiled deviation evaluation (``MODE_DEVIATE``, used by ``game``'s polish) gives the
+    full evaluation's ``J_n`` bit for bit and ``inf`` exactly where its total violation is not
+    zero, for paths that hit team-mates (different radii: a deficit seen by one UAV only),
+    obstacles and the ground, with and without pair pruning (N > 4)."""
+    import dataclasses
+
+    from staghunt.solvers.game import _own_costs
+
+    model = make_model(n_uavs)
+    # No cylinder: the straight start-goal lines (10 m apart) are a feasible plan.
+    model = dataclasses.replace(model, cylinders=frozen(np.zeros((0, 3))))
+    if radii is not None:
+        model = dataclasses.replace(model, radius=frozen(np.array(radii[:n_uavs])))
+    K = 6
+    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
+    plan0 = model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+    rng = np.random.default_rng(3)
+    engine = NumbaEngine(threads=1)
+    for n in range(n_uavs):
+        plan_n = plan0.copy()
+        full = evaluate(model, plan_n[None])
+        if full.total_violation[0] != 0:
+            continue
+        paths = plan_n[n][None] + rng.normal(0.0, [6.0, 6.0, 8.0], size=(40, K, 3)) * np.linspace(0.05, 1.0, 40)[:, None, None]
+        mate = (n + 1) % n_uavs
+        paths[0] = plan_n[mate]  # on a team-mate's waypoints
+        limits = 2.0 + 2.0 * model.radius  # d_s + 2 r
+        paths[1] = plan_n[mate] + np.array([0.5 * (limits[n] + limits[mate]) + 0.25, 0.0, 0.0])
+        paths[2, :, 2] = -1.0  # below ground
+        got = engine.deviations(model, plan_n, n)(paths)
+        want = _own_costs(model, plan_n, n, paths, engine.evaluate)
+        assert np.array_equal(np.isinf(got), np.isinf(want))
+        assert np.array_equal(got, want)
+        assert np.isinf(got).any() and np.isfinite(got).any()

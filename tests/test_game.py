@@ -156,3 +156,36 @@ def test_certificate_refuses_settings_that_disable_the_search(scenario1, reduced
         with pytest.raises(ValueError, match="certificate settings"):
             certify_plan(scenario1, game.waypoints, particles=10, iterations=5,
                          settings=scenario1.solver.with_(**bad))
+
+
+def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduced):
+    """Certificate searches run concurrently (one compiled thread each) give the very same
+    certificate as one after the other (each UAV's search has its own seed)."""
+    from staghunt.engine import get_engine
+
+    _, game, _ = reduced
+    runner = get_engine("numba", threads=1).run_swarm
+    kw = {"particles": 60, "iterations": 20, "seed": 4, "runner": runner}
+    one = certify_plan(scenario1, game.waypoints, workers=1, **kw)
+    two = certify_plan(scenario1, game.waypoints, workers=2, **kw)
+    assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in two.uavs]
+    assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, two.uavs))
+
+
+def test_stop_when_certified_returns_the_certificate_it_stopped_on(scenario1):
+    """``stop="certified"``: the search stops at a certified plan, whose certificate is the
+    result's (the same as certifying the result afterwards); without ``certify`` it is refused."""
+    settings = scenario1.solver.with_(particles=300, iterations=200)
+    cert = CertifyOptions(particles=100, iterations=40)
+    early = plan(scenario1, "game", 2, settings, engine="numba", certify=cert, stop="certified")
+    full = plan(scenario1, "game", 2, settings, engine="numba")
+    assert early.evaluations <= full.evaluations
+    from staghunt.engine import get_engine
+
+    again = certify_plan(scenario1, early.waypoints, particles=100, iterations=40, seed=2,
+                         runner=get_engine("numba", threads=1).run_swarm)
+    assert [u.gap for u in early.certificate.uavs] == [u.gap for u in again.uavs]
+    if any("certified" in r for r in early.details["rounds"]):
+        assert early.certificate.is_equilibrium
+    with pytest.raises(ValueError, match="certify"):
+        plan(scenario1, "game", 2, settings, engine="numba", stop="certified")

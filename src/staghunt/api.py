@@ -19,7 +19,7 @@ from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.scenario.model import check_settings
 from staghunt.solvers import METHODS
 from staghunt.solvers.base import MethodRun
-from staghunt.solvers.response import CertifyOptions, certify_plan
+from staghunt.solvers.response import Certificate, CertifyOptions, certify_plan
 from staghunt.solvers.swarm import Progress
 
 
@@ -33,6 +33,7 @@ def plan(
     threads: int | None = None,
     certify: CertifyOptions | None = None,
     certify_progress: Callable[[int, int, int, int], None] | None = None,
+    stop: str = "budget",
 ) -> PlanResult:
     """Plan paths for the team of ``scenario`` with ``method`` (see ``staghunt.solvers.METHODS``).
 
@@ -53,6 +54,12 @@ def plan(
     anything is allocated (:func:`staghunt.budget.estimate_plan`). ``certify_progress(uav, n_uavs,
     iteration, iterations)`` follows its searches. A one-time compilation of the engine is timed
     apart from the search (``compile_time_s``).
+
+    ``stop``: ``"budget"`` (default): each method's own stopping rule. ``"certified"`` (with
+    ``certify``; for methods that can stop early, ``game``): the search also stops as soon as
+    an intermediate plan passes the certificate, which is then the result's certificate (the
+    same search on the same plan; its time counts in ``certificate_time_s``). For a closed-loop
+    re-planner: the time to a certified equilibrium rather than the best plan of the budget.
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
@@ -60,22 +67,54 @@ def plan(
     resolved = check_plan(scenario, method, seed, settings, engine, threads, certify)
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
+    if stop not in ("budget", "certified"):
+        raise ValueError(f"stop must be 'budget' or 'certified', not {stop!r}")
+    if stop == "certified" and certify is None:
+        raise ValueError("stop='certified' needs certify (the certificate's budget)")
+    checks: list[tuple[np.ndarray, Certificate, float]] = []
+
+    def certified(wp: np.ndarray) -> bool:
+        t = time.perf_counter()
+        cert = _certificate(scenario, wp, certify, seed, settings, certify_progress, resolved)
+        checks.append((np.array(wp, copy=True), cert, time.perf_counter() - t))
+        return cert.is_equilibrium
+
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     out = METHODS[method](MethodRun(scenario, settings, rng, progress, resolved.run_swarm,
-                                    resolved.evaluate))
-    wall = time.perf_counter() - t0
+                                    resolved.evaluate, certified if stop == "certified" else None))
+    spent_checking = sum(c[2] for c in checks)
+    wall = time.perf_counter() - t0 - spent_checking
     result = assemble(scenario, method, seed, settings, out.waypoints, out.history,
                       out.objective_history, out.evaluations, wall, out.leader_path, resolved.name,
                       out.details)
     result = replace(result, compile_time_s=compile_s)
     if certify is None:
         return result
+    if checks and np.array_equal(checks[-1][0], result.waypoints):
+        return replace(result, certificate=checks[-1][1], certificate_time_s=spent_checking)
     t0 = time.perf_counter()
-    cert = certify_plan(scenario, result.waypoints, particles=certify.particles,
-                        iterations=certify.iterations, seed=seed, epsilon=certify.epsilon,
-                        settings=settings, progress=certify_progress, runner=resolved.run_swarm)
-    return replace(result, certificate=cert, certificate_time_s=time.perf_counter() - t0)
+    cert = _certificate(scenario, result.waypoints, certify, seed, settings, certify_progress, resolved)
+    return replace(result, certificate=cert, certificate_time_s=time.perf_counter() - t0 + spent_checking)
+
+
+def _certificate(scenario: Scenario, waypoints: np.ndarray, certify: CertifyOptions, seed: int,
+                 settings: SolverSettings, progress: Callable[[int, int, int, int], None] | None,
+                 engine: Engine) -> Certificate:
+    """The certificate of ``waypoints``, run by ``engine``: with the compiled engine on several
+    cores, the UAVs' searches run side by side, one thread each (the same certificate: each
+    search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
+    runner, workers = engine.run_swarm, 1
+    threads = getattr(engine, "threads", 1)
+    if engine.name == "numba" and (threads is None or threads > 1):
+        from staghunt.engine.threads import usable_cores
+
+        workers = usable_cores() if threads is None else threads
+        if workers > 1:
+            runner = get_engine("numba", threads=1).run_swarm
+    return certify_plan(scenario, waypoints, particles=certify.particles, iterations=certify.iterations,
+                        seed=seed, epsilon=certify.epsilon, settings=settings, progress=progress,
+                        runner=runner, workers=workers)
 
 
 def check_plan(

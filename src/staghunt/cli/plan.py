@@ -49,6 +49,10 @@ def add_commands(sub: Any) -> None:
     add_run_options(p, "runs/<scenario>-<method>-s<seed>",
                     "no progress and no summary table; print only the status and where files went")
     add_certificate_options(p, "certify-", skip="the equilibrium certificate that ends the run")
+    p.add_argument("--stop", choices=["budget", "certified"], default="budget",
+                   help="budget (default): the method's own stopping rule; certified: the game "
+                   "also stops at the first plan the certificate accepts (the time to a certified "
+                   "equilibrium, e.g. for re-planning; needs the certificate)")
     p.add_argument("--no-plots", action="store_true", help="do not write figures")
     p.add_argument("--dry-run", action="store_true",
                    help="check the inputs and print the budget and the memory the run needs "
@@ -92,6 +96,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
     # Every check before the search and before the directory is made: the method, seed and
     # settings, whether they can certify, the engine, and the memory the run needs.
     check_plan(scenario, args.method, args.seed, settings, args.engine, args.threads, certify, warn=say)
+    if args.stop == "certified" and certify is None:
+        raise ValueError("--stop certified needs the certificate (drop --no-certify)")
     created = not out_dir.exists()
     try:  # before the search: a plan must never be computed only to be thrown away
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -101,7 +107,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
     reporter = ProgressReporter(sys.stderr, quiet=args.quiet)
     try:
         result = plan(scenario, args.method, args.seed, settings, reporter, certify=certify,
-                      certify_progress=reporter.certifying, **engine_kwargs(args))
+                      certify_progress=reporter.certifying, stop=args.stop, **engine_kwargs(args))
     except BaseException:
         if created:  # interrupted or failed: leave no empty directory behind
             try:

@@ -8,7 +8,10 @@ Two entry points run one block of ``nb <= B`` particles, in this order:
 - :func:`team_pass`: formation cost and separation (eqs. 5-7), ``J_n``, then the personal bests
   (or, in ``MODE_EVALUATE``, the outputs of the twin of :func:`staghunt.costs.evaluate`).
 
-:func:`select_global` then picks the global best. Intermediate results stay in the block's
+:func:`select_global` then picks the global best. :func:`iterate` runs stretches of a swarm's
+iterations in one call (both entries over all blocks, serially or in a ``prange`` over the
+blocks, then the global best), so a small swarm pays no per-block dispatch from Python and no
+Python-level barrier per iteration. Intermediate results stay in the block's
 scratch arrays (:class:`staghunt.engine.numba_engine.Scratch`). The parts of each entry are
 :func:`~staghunt.engine.jit.subroutine` s, compiled only as part of it; the two entries are
 compiled in parallel processes the first time (see :func:`staghunt.engine.numba_engine.prepare`).
@@ -40,7 +43,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import get_thread_id, njit, prange
 
 from staghunt.engine.jit import subroutine
 
@@ -86,6 +89,7 @@ PRUNE_GUARD = 1e-6  # m added to a pair's limit before a box gap counts as clear
 MODE_INIT = 0  # draw uniform positions, evaluate, personal bests = positions
 MODE_STEP = 1  # PSO step, evaluate, personal bests by dominance
 MODE_EVALUATE = 2  # evaluate the waypoints ``wp`` (no swarm state touched)
+MODE_DEVIATE = 3  # evaluate ``wp`` as deviations of the ``players`` from fixed paths (see team_pass)
 
 
 def block_size(n_uavs: int, waypoints: int) -> int:
@@ -480,7 +484,7 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, prm, pedge, par, seg, sub, ang, 
 
 
 @subroutine
-def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, players,  # noqa: ANN001
+def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, every, players,  # noqa: ANN001
                 form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res) -> None:
     """Formation cost and separation for the whole team (:mod:`staghunt.costs.formation`), then
     ``J_s``, ``J_f``, ``J_n`` (:func:`staghunt.costs.evaluate`).
@@ -492,7 +496,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a pair's segments whose
     bounding boxes over the block's lanes lie farther apart than its separation limit are
     skipped (exact; see the comment in the body). With ``solo`` (a problem with
-    fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``.
+    fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``
+    (``every``: the collisions of all UAVs, from those pairs), and pairs are pruned at any N.
     """
     N = px.shape[0]
     K = px.shape[1] - 2
@@ -540,11 +545,13 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     # its distances there cannot make a collision or a deficit: they are skipped (an entry of
     # ``near2``/``seg2`` may then stay above its true value, but only where both exceed every
     # limit, which decides nothing). Exact: the same collisions, deficits and J_f.
-    prune = N > PRUNE_MIN_UAVS
+    prune = N > PRUNE_MIN_UAVS or solo
     box = np.empty((6, N, S)) if prune else np.empty((6, 1, 1))
     near = np.ones(S, dtype=np.bool_)
     if prune:
         for n in range(N):
+            # With ``solo`` a UAV other than the players has one fixed path in every lane.
+            lanes = nb if not solo or _is_player(players, n) else min(nb, 1)
             for j in range(S):
                 x0 = np.inf
                 x1 = -np.inf
@@ -553,7 +560,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 z0 = np.inf
                 z1 = -np.inf
                 for i in range(j, j + 2):
-                    for b in range(nb):
+                    for b in range(lanes):
                         x0 = min(x0, px[n, i, b])
                         x1 = max(x1, px[n, i, b])
                         y0 = min(y0, py[n, i, b])
@@ -623,7 +630,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
-        if solo and not _is_player(players, n):
+        if solo and not every and not _is_player(players, n):
             continue
         limit = uav[n, 10]
         for k in range(K):
@@ -864,7 +871,7 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     team paths, or (``MODE_EVALUATE``) waypoints ``wp`` loaded; absolute altitudes into
     ``px``, ``py``, ``pz`` ``(N, K+2, B)`` and ``ph`` ``(N, K, B)``; then every UAV's ``J_s``
     terms ``terms (N, 5, B)`` and obstacle/ground violations ``vio[:, 0:2]``."""
-    if mode == MODE_EVALUATE:
+    if mode >= MODE_EVALUATE:
         _load(q0, nb, wp, px, py, ph)
     else:
         _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets,
@@ -888,11 +895,15 @@ def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff
                X, PB, pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out) -> None:
     """Entry 2: formation cost, separation, ``J_n`` for a block; then the compared costs and
     personal bests of particles ``q0 .. q0+nb`` (``MODE_INIT``, ``MODE_STEP``) or the twin's
-    outputs (``MODE_EVALUATE``)."""
+    outputs (``MODE_EVALUATE``). ``MODE_DEVIATE`` (``par`` with the fixed paths' constants,
+    ``member[n] < 0`` for them): the outputs of the ``players``' deviations, pairs with a player
+    only; every UAV's collisions are still counted (a fixed UAV's separation deficit against the
+    players, so that, with fixed paths clear of each other, the total violation is zero exactly
+    when the full evaluation's is), but only the players' ``J`` are meaningful."""
     solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
-    _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, players,
-                form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res)
-    if mode == MODE_EVALUATE:
+    _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, mode == MODE_DEVIATE,
+                players, form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res)
+    if mode >= MODE_EVALUATE:
         _store(q0, nb, terms, vio, res, terms_out, vio_out, res_out)
     else:
         _bests(mode, q0, nb, X, PB, pcost, pviol, cost, viol, J, players, par, solo, vio, res, tmp, acc, better)
@@ -924,3 +935,77 @@ def select_global(cost: np.ndarray, viol: np.ndarray, gcost: np.ndarray, gviol: 
             best_key = key
             best_i = i
     return best_i if best_i >= 0 else best_vi
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol) -> None:  # noqa: ANN001
+    """After iteration ``it``'s blocks: the global best (:func:`select_global`), the histories
+    and the inertia's damping (``state`` = ``[inertia, global violation, damping]``)."""
+    S, K = X.shape[0], X.shape[1]
+    g = select_global(cost, viol, gcost, state[1], it != 0)
+    if g >= 0:
+        for s in range(S):
+            for k in range(K):
+                for c in range(3):
+                    gbest[s, k, c] = X[s, k, c, g]
+        for c in range(cost.shape[0]):
+            gcost[c, 0] = cost[c, g]
+        state[1] = viol[g]
+        for n in range(J.shape[0]):
+            rhistory[it, n] = J[n, g]
+    else:
+        for n in range(J.shape[0]):
+            rhistory[it, n] = rhistory[it - 1, n]
+    for c in range(cost.shape[0]):
+        history[it, c] = gcost[c, 0]
+    hviol[it] = state[1]
+    if it != 0:
+        state[0] = state[0] * state[2]
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, member, offsets, fixed,  # noqa: ANN001
+            par, uav, cyl, prm, pedge, grid, weights, heads, tails, mu, ref_diff, players,
+            pcost, pviol, cost, viol, J, gcost, history, rhistory, hviol,
+            sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
+            terms, vio, form, hit, rx, ry, rz, better, res, wp, terms_out, vio_out, res_out) -> None:
+    """Iterations ``it0 .. it1-1`` of a swarm run in one call (iteration 0: the initial draw),
+    each over all particles in blocks of ``bs``, then the global best, the histories
+    ``history (I+1, C)``, ``rhistory (I+1, N)``, ``hviol (I+1,)`` and the inertia's damping
+    (:func:`_global`; ``state`` = ``[inertia, global violation, damping]``, carried from call to
+    call). The blocks run in a parallel loop (a block on thread ``get_thread_id()`` with that
+    thread's scratch, the leading axis of ``sww .. res``) or, with ``serial``, in a plain loop
+    on scratch 0 (no parallel launch per iteration). Every particle's work is its own and the
+    global best is chosen after the loop, so results depend neither on the thread count nor on
+    the block size."""
+    P = X.shape[3]
+    n_blocks = (P + bs - 1) // bs
+    for it in range(it0, it1):
+        mode = MODE_INIT if it == 0 else MODE_STEP
+        inertia = state[0]
+        if serial:
+            for blk in range(n_blocks):
+                q0 = blk * bs
+                nb = min(bs, P - q0)
+                uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
+                         par, wp, uav, cyl, prm, pedge, grid, sww[0], px[0], py[0], pz[0], ph[0], stx[0],
+                         sty[0], sth[0], prev[0], bits1[0], bits2[0], seg[0], sub[0], ang[0], tmp[0], acc[0],
+                         acc2[0], flag[0], terms[0], vio[0])
+                team_pass(mode, q0, nb, px[0], py[0], pz[0], uav, weights, heads, tails, mu, ref_diff, par,
+                          form[0], hit[0], rx[0], ry[0], rz[0], tmp[0], acc[0], acc2[0], flag[0], better[0],
+                          terms[0], vio[0], res[0], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
+                          vio_out, res_out)
+        else:
+            for blk in prange(n_blocks):
+                t = get_thread_id()
+                q0 = blk * bs
+                nb = min(bs, P - q0)
+                uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
+                         par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
+                         sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t],
+                         acc2[t], flag[t], terms[t], vio[t])
+                team_pass(mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff, par,
+                          form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
+                          terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
+                          vio_out, res_out)
+        _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)

@@ -25,24 +25,36 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING, Callable, Iterable, Iterator
 
 import numpy as np
 
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import ModelArrays, SwarmArrays, model_arrays, swarm_arrays
+from staghunt.engine.loop import (
+    CHUNK_ITERATIONS,
+    MIN_SHARED_PARTICLES,
+    iterate_chunk,
+    kernel_threads,
+    parallel_block,
+)
 from staghunt.engine.scratch import Scratch, borrow, give_back
-from staghunt.engine.threads import AdaptiveThreads, BlockRunner, usable_cores
+from staghunt.engine.threads import AdaptiveThreads, usable_cores
 from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.swarm import Progress, SwarmOutcome
 
+if TYPE_CHECKING:
+    from staghunt.engine.deviations import Deviations
+
 logger = logging.getLogger("staghunt.engine")
 
-COLD_COMPILE_ESTIMATE_S = 15
-"""Announced one-time compile (measured 12 s in two processes, 20 s in one, on a 2-core machine;
-see ``benchmarks/``)."""
+COLD_COMPILE_ESTIMATE_S = 60
+"""Announced one-time compile (measured 12.7 s in two processes before the compiled iteration
+loop ``iterate``, which re-optimises both kernel entries inside it; with it 77-98 s on the 2-core
+machine of issue 17 at load 3.5-4.6, about 43 s of CPU for ``iterate`` alone; see
+``benchmarks/README.md``)."""
 
 NOTIFY_AFTER_S = 1.0
 """When the cache index cannot be read: loading every kernel from a warm cache takes well under
@@ -118,7 +130,9 @@ class _Pass:
             self.block(q0, min(self.B, p1 - q0), worker)
 
 
-ENTRIES = ("uav_pass", "team_pass", "select_global")
+ENTRIES = ("uav_pass", "team_pass", "select_global", "iterate")
+"""Compiled entry points; ``iterate`` calls the first three (it is compiled last, once they are
+in the cache)."""
 
 
 def _tiny(entries: Iterable[str]) -> None:
@@ -151,6 +165,12 @@ def _tiny(entries: Iterable[str]) -> None:
         run.block(0, P, 0, kernel_names)
     if "select_global" in names:
         kn.select_global(run.cost, run.viol, np.zeros((N, 1)), 0.0, True)
+    if "iterate" in names:
+        hist = np.zeros((3, N))
+        for threads in sorted({1, min(2, kernel_threads())}):  # the serial loop, then the parallel one
+            stack = Scratch(N, K, N, run.B, 2)
+            iterate_chunk(0, 3, run.B, threads, np.uint64(1), np.array([0.7, 0.0, 0.9]), run, np.zeros((N, 1)),
+                     hist, np.zeros((3, N)), np.zeros(3), stack)
 
 
 def _cache_is_warm() -> bool | None:
@@ -199,7 +219,7 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
         say = notify if notify is not None else logger.warning
         t0 = time.perf_counter()
         errors: list[BaseException] = []
-        main_entries = [e for e in ENTRIES if e not in HELPER_ENTRIES]
+        main_entries = [e for e in ENTRIES if e not in HELPER_ENTRIES and e != "iterate"]
 
         def target() -> None:
             try:
@@ -271,39 +291,34 @@ def _run(
     sa = swarm_arrays(problem, K)
     start = None if initial is None else np.array(initial, dtype=float).reshape(-1, S, K, 3)[:P].copy()
     run = _Pass(ma, sa, N, K, S, C, P, initial=start)
-    run.key = key
-    run.inertia = float(settings.c0)
-    run.ensure_scratch(control.max_threads)
+    state = np.array([float(settings.c0), 0.0, float(settings.damping)])  # inertia, best's violation, damping
     gcost = np.zeros((C, 1))
     history = np.empty((iterations + 1, C))
     rhistory = np.empty((iterations + 1, N))
     hviol = np.empty(iterations + 1)
-    with BlockRunner(control.max_threads) as runner, _releasing(run):
-        runner.run(run.work, P, control.max_threads, run.B)
-        g = kn.select_global(run.cost, run.viol, gcost, 0.0, False)
-        run.gbest[...] = run.X[..., g]
-        gcost[:, 0] = run.cost[:, g]
-        gviol = float(run.viol[g])
-        history[0], rhistory[0], hviol[0] = gcost[:, 0], run.J[:, g], gviol
-        run.mode = kn.MODE_STEP
-        for it in range(1, iterations + 1):
-            run.it = it
-            threads = control.next()
+    lanes = min(control.max_threads, kernel_threads())
+    shape = (N, K, S, run.B, lanes)
+    stack = borrow(shape, 1)[0]
+    try:
+        def chunk(it0: int, it1: int, threads: int) -> None:
+            threads = max(1, min(threads, lanes))
+            iterate_chunk(it0, it1, parallel_block(P, run.B, threads), threads, key, state, run, gcost,
+                     history, rhistory, hviol, stack)
+
+        chunk(0, 1, control.max_threads)
+        it = 1
+        while it <= iterations:
+            threads, length = control.chunk(iterations - it + 1, CHUNK_ITERATIONS)
             t0 = time.perf_counter()
-            runner.run(run.work, P, threads, run.B)
-            control.record(time.perf_counter() - t0)
-            g = kn.select_global(run.cost, run.viol, gcost, gviol, True)
-            if g >= 0:
-                run.gbest[...] = run.X[..., g]
-                gcost[:, 0] = run.cost[:, g]
-                gviol = float(run.viol[g])
-                rhistory[it] = run.J[:, g]
-            else:
-                rhistory[it] = rhistory[it - 1]
-            history[it], hviol[it] = gcost[:, 0], gviol
-            run.inertia *= settings.damping
+            chunk(it, it + length, threads)
+            control.record_chunk(time.perf_counter() - t0, length)
             if progress is not None:
-                progress(it, iterations, gcost[:, 0].copy())
+                for i in range(it, it + length):
+                    progress(i, iterations, history[i].copy())
+            it += length
+    finally:
+        give_back(shape, [stack])
+    gviol = float(state[1])
     return SwarmOutcome(
         best=run.gbest.copy(),
         best_waypoints=_decode_one(ma, sa, N, K, S, C, run.gbest),
@@ -382,7 +397,8 @@ class NumbaEngine:
     ) -> SwarmOutcome:
         """Same contract as :func:`staghunt.solvers.swarm.run_swarm`."""
         self.prepare()
-        control = AdaptiveThreads(usable_cores(), self.threads)
+        shared = settings.particles >= MIN_SHARED_PARTICLES
+        control = AdaptiveThreads(usable_cores() if shared else 1, self.threads if shared or self.threads is None else 1)
         out = _run(problem, settings, rng, progress, initial, control)
         self.last_threads = control.summary()
         return out
@@ -391,6 +407,14 @@ class NumbaEngine:
         """Same contract as :func:`staghunt.costs.evaluate`."""
         self.prepare()
         return evaluate(model, waypoints)
+
+    def deviations(self, model: CostModel, plan: np.ndarray, n: int) -> Deviations:
+        """UAV ``n``'s deviation costs from the feasible ``plan`` (see
+        :class:`staghunt.engine.deviations.Deviations`)."""
+        from staghunt.engine.deviations import Deviations
+
+        self.prepare()
+        return Deviations(model, plan, n)
 
     def __repr__(self) -> str:
         return f"NumbaEngine(threads={self.threads!r})"

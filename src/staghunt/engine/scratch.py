@@ -10,55 +10,63 @@ import numpy as np
 
 class Scratch:
     """One thread's block buffers for ``N`` UAVs, ``K`` waypoints, ``S`` swarms, ``B`` lanes
-    (shapes in :mod:`staghunt.engine.kernels`)."""
+    (shapes in :mod:`staghunt.engine.kernels`); with ``threads``, one set per thread stacked on a
+    leading axis (for :func:`staghunt.engine.kernels.iterate`)."""
 
-    def __init__(self, N: int, K: int, S: int, B: int) -> None:
+    def __init__(self, N: int, K: int, S: int, B: int, threads: int | None = None) -> None:
         S1 = K + 1
         self.B = B
-        self.sww = np.zeros((max(S, 1), 3, K, B))
-        self.px = np.zeros((N, K + 2, B))
-        self.py = np.zeros((N, K + 2, B))
-        self.pz = np.zeros((N, K + 2, B))
-        self.ph = np.zeros((N, K, B))
-        self.seg = np.zeros((5, S1, B))
-        self.sub = np.zeros((6, S1, B))
-        self.ang = np.zeros((2, S1, B))
-        self.form = np.zeros((3, N, S1, B))
-        self.hit = np.zeros((2, S1, B))
-        self.rx = np.zeros((K + 2, B))
-        self.ry = np.zeros((K + 2, B))
-        self.rz = np.zeros((K + 2, B))
-        self.terms = np.zeros((N, 5, B))
-        self.vio = np.zeros((N, 3, B))
-        self.res = np.zeros((3, N, B))
-        self.tmp = np.zeros((max(S1, 3 * N, 8), B))
-        self.stx = np.zeros(B)
-        self.sty = np.zeros(B)
-        self.sth = np.zeros(B)
-        self.prev = np.zeros((3, B))
-        self.acc = np.zeros(B)
-        self.acc2 = np.zeros(B)
-        self.flag = np.zeros(B)
-        self.better = np.zeros(B)
-        self.bits1 = np.zeros(B, dtype=np.uint64)
-        self.bits2 = np.zeros(B, dtype=np.uint64)
+        lead = () if threads is None else (threads,)
+
+        def z(*shape: int, dtype: type = np.float64) -> np.ndarray:
+            return np.zeros(lead + shape, dtype=dtype)
+
+        self.sww = z(max(S, 1), 3, K, B)
+        self.px = z(N, K + 2, B)
+        self.py = z(N, K + 2, B)
+        self.pz = z(N, K + 2, B)
+        self.ph = z(N, K, B)
+        self.seg = z(5, S1, B)
+        self.sub = z(6, S1, B)
+        self.ang = z(2, S1, B)
+        self.form = z(3, N, S1, B)
+        self.hit = z(2, S1, B)
+        self.rx = z(K + 2, B)
+        self.ry = z(K + 2, B)
+        self.rz = z(K + 2, B)
+        self.terms = z(N, 5, B)
+        self.vio = z(N, 3, B)
+        self.res = z(3, N, B)
+        self.tmp = z(max(S1, 3 * N, 8), B)
+        self.stx = z(B)
+        self.sty = z(B)
+        self.sth = z(B)
+        self.prev = z(3, B)
+        self.acc = z(B)
+        self.acc2 = z(B)
+        self.flag = z(B)
+        self.better = z(B)
+        self.bits1 = z(B, dtype=np.uint64)
+        self.bits2 = z(B, dtype=np.uint64)
 
 
-_POOL: dict[tuple[int, int, int, int], list[Scratch]] = {}
+_POOL: dict[tuple[int, ...], list[Scratch]] = {}
 _POOL_LOCK = threading.Lock()
 _POOL_KEEP = 8
 """Idle buffers kept per shape: many short runs (``game``'s replies, the polish's evaluations)
 would otherwise spend more time allocating buffers than computing."""
 
 
-def borrow(shape: tuple[int, int, int, int], count: int) -> list[Scratch]:
+def borrow(shape: tuple[int, ...], count: int) -> list[Scratch]:
+    """``count`` buffers of ``shape`` = ``(N, K, S, B)`` (one thread's) or ``(N, K, S, B, T)``
+    (``T`` threads' stacked), from the pool or new."""
     with _POOL_LOCK:
         free = _POOL.setdefault(shape, [])
         taken = [free.pop() for _ in range(min(count, len(free)))]
     return taken + [Scratch(*shape) for _ in range(count - len(taken))]
 
 
-def give_back(shape: tuple[int, int, int, int], scratch: list[Scratch]) -> None:
+def give_back(shape: tuple[int, ...], scratch: list[Scratch]) -> None:
     with _POOL_LOCK:
         free = _POOL.setdefault(shape, [])
         free.extend(scratch[: max(0, _POOL_KEEP - len(free))])

@@ -1,7 +1,9 @@
 """Running one iteration's particle blocks on several threads, and choosing how many.
 
-The kernels release the GIL (``nogil``), so plain Python threads run them in parallel. Every
-iteration ends at a barrier (the global best needs every particle), and a barrier is what makes
+A swarm run's iterations run in the compiled loop :func:`staghunt.engine.kernels.iterate`
+(Numba's ``prange`` over the blocks, stretches of iterations per call; :class:`BlockRunner`,
+plain Python threads over the ``nogil`` kernels, is the older way, kept for callers that run
+blocks themselves). Every iteration ends at a barrier (the global best needs every particle), and a barrier is what makes
 extra threads *slower* on a busy machine: a thread that shares its core with another process
 waits for a whole scheduler time slice while the others idle at the barrier. So the default
 (``threads=None``) is adaptive: :class:`AdaptiveThreads` times iterations with 1 thread and with
@@ -168,6 +170,28 @@ class AdaptiveThreads:
             slow = False
         if slow or self._since_probe >= PROBE_EVERY:
             self._probe_left = 2 * PROBE_LENGTH
+
+    def chunk(self, left: int, longest: int) -> tuple[int, int]:
+        """Thread count and length (iterations, at most ``min(left, longest)``) of the next
+        stretch run in one call: one iteration while probing, else up to the next probe."""
+        n = self.next()
+        if self.adaptive and self._probe_left > 0:
+            length = 1
+        else:
+            length = max(1, min(left, longest))
+            if self.adaptive:
+                length = max(1, min(length, PROBE_EVERY - self._since_probe))
+        self.history.extend([n] * (length - 1))
+        return n, length
+
+    def record_chunk(self, seconds: float, length: int) -> None:
+        """Wall time of a stretch from :meth:`chunk`: each of its ``length`` iterations is taken
+        to have lasted ``seconds / length`` (a probe due during the stretch starts after it)."""
+        for _ in range(length):
+            probing = self._probe_left > 0
+            self.record(seconds / length)
+            if not probing and self._probe_left > 0:
+                break
 
     def summary(self) -> dict[int, int]:
         """Iterations run with each thread count."""

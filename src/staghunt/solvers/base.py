@@ -35,7 +35,9 @@ class MethodRun:
     :class:`~staghunt.solvers.problem.SwarmProblem` (:func:`~staghunt.solvers.swarm.run_swarm`,
     the NumPy reference, or an engine's ``run_swarm``), so every engine runs every method;
     ``evaluator`` scores batches of given plans (contract of :func:`staghunt.costs.evaluate`),
-    for methods that also search outside a swarm (``game``'s polish)."""
+    for methods that also search outside a swarm (``game``'s polish). ``certified``: if given,
+    a method that can stop early (``game``) asks it whether an intermediate plan ``(N, K, 3)`` is
+    already a certified equilibrium and stops when it is (``None``: the usual stopping rule)."""
 
     scenario: Scenario
     settings: SolverSettings
@@ -43,6 +45,7 @@ class MethodRun:
     progress: Progress | None = None
     runner: SwarmRunner = run_swarm
     evaluator: Evaluator = evaluate
+    certified: Callable[[np.ndarray], bool] | None = None
 
 
 Method = Callable[[MethodRun], SolverOutput]

@@ -24,7 +24,9 @@ one generator:
    search that finds nothing is no evidence of an equilibrium.
 4. **Stop**: after a round in which no UAV gains more than ``epsilon *`` :data:`STOP_FRACTION`
    with a reply search at least as strong as the certificate's (:data:`VERIFY_EVALUATIONS`), or
-   when the budget is spent (the remainder goes to a last round).
+   when the budget is spent (the remainder goes to a last round). Optionally
+   (``staghunt.plan(..., stop="certified")``) also as soon as a round with every gain below
+   ``epsilon`` leaves a plan that the certificate accepts.
 
 The plan returned is the last allocation; :func:`staghunt.plan` then certifies it with an
 independent search (:mod:`staghunt.solvers.response`). The run's ``details`` say what happened:
@@ -136,14 +138,24 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     """
     K = plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
+    if max_evaluations < 6 * K + 1:
+        return plan, 0
     current = evaluator(model, plan[None])
     if current.total_violation[0] != 0:
         return plan, 0
     best, J = plan, float(current.total[0, n])
     spent = 0
+    # Only UAV n's path changes and the others' stay clear of each other (the plan is feasible):
+    # an engine may evaluate the deviation alone (same J_n, same feasibility verdicts).
+    engine = getattr(evaluator, "__self__", None)
+    fast = engine.deviations(model, plan, n) if hasattr(engine, "deviations") else None
+
+    def own(paths: np.ndarray) -> np.ndarray:
+        return fast(paths) if fast is not None else _own_costs(model, best, n, paths, evaluator)
+
     while step >= min_step and spent + 6 * K + 1 <= max_evaluations:
         cands = np.clip(best[n][None] + step * moves, model.lower, model.upper)
-        Jc = _own_costs(model, best, n, cands, evaluator)
+        Jc = own(cands)
         spent += len(cands)
         gain = J - Jc  # (6K,)
         if not gain.max() > ACCEPT_TOL * J:
@@ -152,7 +164,7 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
         g = gain.reshape(2, 3 * K)
         direction = np.where(g[0] >= g[1], 1.0, -1.0) * (np.maximum(g[0], g[1]) > 0)
         combined = np.clip(best[n] + step * direction.reshape(K, 3), model.lower, model.upper)
-        Jcomb = _own_costs(model, best, n, combined[None], evaluator)[0]
+        Jcomb = own(combined[None])[0]
         spent += 1
         i = int(np.argmax(gain))
         new = best.copy()
@@ -204,7 +216,8 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                          budget: int, spent: int = 0,
                          on_reply: Callable[[int, np.ndarray], None] | None = None,
                          repair: bool = False, reply_start: float = REPLY_START,
-                         azimuth: float = ANGLE_RANGE) -> RoundsOutcome:
+                         azimuth: float = ANGLE_RANGE,
+                         certified: Callable[[np.ndarray], bool] | None = None) -> RoundsOutcome:
     """Steps 2-4 of the method from the allocation ``plan`` ``(N, K, 3)``: best-response
     rounds until they converge or ``budget`` path evaluations (``spent`` of them already used)
     are spent. ``on_reply(spent, J)`` follows every reply.
@@ -215,7 +228,11 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     Without ``repair`` only feasible improvements are ever accepted. ``reply_start``: the first
     reply budget as a share of the budget left (a warm re-plan starts near an equilibrium and
     gains from few strong replies rather than many weak ones). ``azimuth``: half-width of the
-    replies' heading range (:func:`~staghunt.encoding.search_space`)."""
+    replies' heading range (:func:`~staghunt.encoding.search_space`). ``certified(plan)``:
+    after a round that leaves the plan feasible with no reply gaining more than
+    :data:`EPSILON`, asks whether the plan is a certified equilibrium, and if so the rounds stop
+    (converged; the round's ``certified`` flag says so). The check is not counted in the
+    budget."""
     N, P = model.n_uavs, settings.particles
     plan = np.array(plan, dtype=float)
     current = evaluate(model, plan[None])
@@ -264,6 +281,8 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                        "max_relative_gain": float(gains.max()), "relative_gains": gains.tolist(),
                        "verification": bool(strong)})
         converged = bool(strong and (violation == 0 or not repair) and gains.max() <= EPSILON * STOP_FRACTION)
+        if certified is not None and not converged and violation == 0 and gains.max() <= EPSILON:
+            rounds[-1]["certified"] = converged = bool(certified(plan))
         if gains.max() < GROW_BELOW:
             reply_evals *= 2
     return RoundsOutcome(plan, J, int(spent), rounds, accepted, converged)
@@ -298,7 +317,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
         if progress is not None:
             progress(min(I, max(0, last - 1)), I, J_now.copy())
 
-    out = best_response_rounds(model, plan, settings, rng, runner, evaluator, budget, spent, record)
+    out = best_response_rounds(model, plan, settings, rng, runner, evaluator, budget, spent, record,
+                               certified=run.certified)
     plan, J, spent, row = out.plan, out.costs, out.evaluations, state["row"]
     history[row:] = J
     if progress is not None:

@@ -43,6 +43,8 @@ budget and seed give the same certificate.
 from __future__ import annotations
 
 import math
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable
 
@@ -190,6 +192,7 @@ def certify_plan(
     progress: Callable[[int, int, int, int], None] | None = None,
     runner: SwarmRunner = run_swarm,
     azimuth: float = ANGLE_RANGE,
+    workers: int = 1,
 ) -> Certificate:
     """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
 
@@ -199,7 +202,10 @@ def certify_plan(
     ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
     ``runner``: what runs the searches (an engine's ``run_swarm``); the plan's costs are always
     evaluated with the NumPy reference. ``azimuth``: half-width of the deviations' heading
-    range (the strategy space the plan was solved in). Raises ``ValueError`` for unusable inputs, including
+    range (the strategy space the plan was solved in). ``workers``: UAV searches run at once
+    (threads; each search has its own generator, so the certificate is the same for any
+    count; ``runner`` must then be thread-safe, e.g. a compiled engine pinned to one thread).
+    Raises ``ValueError`` for unusable inputs, including
     settings that disable the search (no velocity, no attraction): those cannot certify.
     """
     wp = np.asarray(waypoints, dtype=float)
@@ -227,18 +233,19 @@ def certify_plan(
     current = evaluate(model, wp[None])
     J = current.total[0]
     feasible = bool(current.total_violation[0] == 0 and np.all(np.isfinite(J)))
-    notes: list[str] = []
-    gaps: list[UAVGap] = []
-    for n, name in enumerate(names):
+    lock = threading.Lock()
+
+    def search(n: int) -> tuple[UAVGap, str | None]:
+        name = names[n]
         if not feasible:
-            gaps.append(UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0))
-            continue
+            return UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0), None
         problem = solo_problem(model, wp, n, run_settings.velocity_fraction, azimuth)
         initial = encode(wp[n][None, None], problem.starts, problem.space)[0]  # (1, K, 3)
         warm = decode(initial[None], problem.starts, problem.lower, problem.upper)[0, 0]
         roundtrip = float(np.max(np.abs(warm - wp[n])))
+        note = None
         if roundtrip > ROUNDTRIP_TOLERANCE:
-            notes.append(
+            note = (
                 f"{name}: the current path is not exactly representable in the search space "
                 f"(encode/decode moves it by up to {roundtrip:.3g} m); the gap is still measured "
                 "against the current path"
@@ -246,7 +253,8 @@ def certify_plan(
         report: Progress | None = None
         if progress is not None:
             def report(it: int, total: int, best: np.ndarray, _n: int = n) -> None:
-                progress(_n, len(names), it, total)
+                with lock:
+                    progress(_n, len(names), it, total)
         rng = np.random.default_rng([int(seed), n])
         out = runner(problem, run_settings, rng, report, initial)
         best = float(out.best_cost[0])
@@ -258,10 +266,15 @@ def certify_plan(
             deviation = wp[n].copy()
         relative = gap / float(J[n]) if J[n] != 0 else (0.0 if gap == 0 else math.inf)
         deviation.setflags(write=False)
-        gaps.append(
-            UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip,
-                   out.path_evaluations)
-        )
+        return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, out.path_evaluations), note
+
+    if workers > 1 and feasible and len(names) > 1:
+        with ThreadPoolExecutor(min(workers, len(names)), thread_name_prefix="staghunt-certify") as pool:
+            found = list(pool.map(search, range(len(names))))
+    else:
+        found = [search(n) for n in range(len(names))]
+    gaps = [g for g, _ in found]
+    notes = [note for _, note in found if note is not None]
     return Certificate(
         uavs=tuple(gaps),
         epsilon=float(epsilon),
