@@ -13,7 +13,7 @@ import numpy as np
 from staghunt.budget import check_memory, estimate_plan
 from staghunt.checks import plan_metrics, violations
 from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
-from staghunt.engine import Engine, get_engine
+from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.scenario.model import check_settings
@@ -104,14 +104,7 @@ def _certificate(scenario: Scenario, waypoints: np.ndarray, certify: CertifyOpti
     """The certificate of ``waypoints``, run by ``engine``: with the compiled engine on several
     cores, the UAVs' searches run side by side, one thread each (the same certificate: each
     search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
-    runner, workers = engine.run_swarm, 1
-    threads = getattr(engine, "threads", 1)
-    if engine.name == "numba" and (threads is None or threads > 1):
-        from staghunt.engine.threads import usable_cores
-
-        workers = usable_cores() if threads is None else threads
-        if workers > 1:
-            runner = get_engine("numba", threads=1).run_swarm
+    runner, workers = side_by_side(engine)
     return certify_plan(scenario, waypoints, particles=certify.particles, iterations=certify.iterations,
                         seed=seed, epsilon=certify.epsilon, settings=settings, progress=progress,
                         runner=runner, workers=workers)

@@ -34,7 +34,7 @@ import numpy as np
 
 from staghunt.costs import CostModel, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE
-from staghunt.engine import Engine
+from staghunt.engine import Engine, side_by_side
 from staghunt.flight.known import (
     KnownWorld,
     check_piece,
@@ -284,11 +284,12 @@ class Replanner:
         cfg = self.config
         model = CostModel.from_scenario(sub)
         base, t0, max_stretch = splice
+        runner, workers = side_by_side(self.engine)
         for round_ in range(cfg.certify_rounds + 1):
             cert = certify_plan(sub, plan, particles=cfg.certify_particles,
                                 iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
-                                epsilon=cfg.epsilon, settings=settings, runner=self.engine.run_swarm,
-                                azimuth=self._azimuth)
+                                epsilon=cfg.epsilon, settings=settings, runner=runner,
+                                azimuth=self._azimuth, workers=workers)
             self._spent += sum(u.evaluations for u in cert.uavs)
             worst = cert.uavs[cert.worst] if cert.uavs else None
             if cert.is_equilibrium or round_ == cfg.certify_rounds or worst is None or worst.deviation is None:
