@@ -76,6 +76,10 @@ def formation_scenario(n: int) -> Any:
     return scenario_from_dict(data, name=f"formation{n}")
 
 
+def first_line(text: str) -> str:
+    return text.splitlines()[0] if text else ""
+
+
 def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
@@ -394,15 +398,18 @@ def summary(r: dict[str, Any], paper: dict[str, int], numpy_iters: int) -> str:
         "",
         "| measure | value |",
         "|---|---|",
-        f"| numba solver, warm (best of {len(pn['times_s'])}) | {pn['best_s']:.2f} s (all: {', '.join(f'{t:.2f}' for t in pn['times_s'])}) |",
+        f"| numba solver, warm (best of {len(pn['times_s'])}) | {pn['best_s']:.2f} s "
+        f"(all: {', '.join(f'{t:.2f}' for t in pn['times_s'])}) |",
         f"| numba path evaluations / s | {pn['path_evals_per_s']:.3g} |",
         f"| numba threads used (iterations per count) | {pn['threads_used']} |",
         f"| numba peak RSS (whole process) | {pn['peak_rss_mb']:.0f} MB |",
-        f"| numpy, measured over {numpy_iters} iterations | {pp['per_iteration_ms']:.1f} ms / iteration, peak RSS {pp['peak_rss_mb']:.0f} MB |",
+        f"| numpy, measured over {numpy_iters} iterations | {pp['per_iteration_ms']:.1f} ms / iteration, "
+        f"peak RSS {pp['peak_rss_mb']:.0f} MB |",
         f"| numpy, **extrapolated** linearly to {paper['iterations']} iterations | {r['paper_numpy_extrapolated_s']:.0f} s |",
         f"| numpy path evaluations / s | {3 * paper['particles'] / (pp['per_iteration_ms'] / 1e3):.3g} |",
         f"| speed-up numba / numpy | {r['speedup']:.0f}x |",
-        f"| `staghunt plan scenario2 --no-plots --quiet`, warm (best of {len(r['cli_warm']['times_s'])}) | {r['cli_warm']['best_s']:.2f} s |",
+        f"| `staghunt plan scenario2 --no-plots --quiet`, warm (best of {len(r['cli_warm']['times_s'])}) | "
+        f"{r['cli_warm']['best_s']:.2f} s |",
     ]
     if "cold_compile" in r:
         cc = r["cold_compile"]
@@ -413,7 +420,7 @@ def summary(r: dict[str, Any], paper: dict[str, int], numpy_iters: int) -> str:
             lines.append(f"| one-time compile, empty cache, 1 process | {r['cold_compile_serial']['prepare_s']:.1f} s |")
         lines += [
             f"| first `staghunt plan scenario2 --no-plots --quiet`, empty cache | {r['cli_first_run']['best_s']:.1f} s |",
-            f"| its message on stderr | `{r['cli_first_run']['stderr_first_run'].splitlines()[0] if r['cli_first_run']['stderr_first_run'] else ''}` |",
+            f"| its message on stderr | `{first_line(r['cli_first_run']['stderr_first_run'])}` |",
         ]
     lines += ["", "Threads (ms per iteration, same problem; `auto` = adaptive default):", "",
               "| machine | 1 thread | 2 threads | auto (iterations per count) |", "|---|---|---|---|"]
@@ -423,7 +430,8 @@ def summary(r: dict[str, Any], paper: dict[str, int], numpy_iters: int) -> str:
                      f"{t[state + '-1']['per_iteration_ms']:.2f} | {t[state + '-2']['per_iteration_ms']:.2f} | "
                      f"{t[state + '-auto']['per_iteration_ms']:.2f} {t[state + '-auto']['threads_used']} |")
     lines += ["", "Scaling (1 thread; `scaling.csv`, `scaling.png`):", "",
-              "| axis | N | particles | K | ms / iteration | ns / path evaluation | peak RSS MB |", "|---|---|---|---|---|---|---|"]
+              "| axis | N | particles | K | ms / iteration | ns / path evaluation | peak RSS MB |",
+              "|---|---|---|---|---|---|---|"]
     for row in r["scaling"]:
         lines.append(f"| {row['axis']} | {row['uavs']} | {row['particles']} | {row['waypoints']} | "
                      f"{row['per_iteration_ms']:.2f} | {row['ns_per_path_eval']:.0f} | {row['peak_rss_mb']:.0f} |")

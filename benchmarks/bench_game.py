@@ -123,7 +123,8 @@ def report(per: list[dict], small: list[dict], cert: list[dict], meta: dict) -> 
             "|" + "---|" * 13]
     for r in per:
         out.append(f"| {r['scenario']} | {r['seed']} | {r['ns_paper_1t']:.0f} | {r['ns_game_1t']:.0f} | "
-                   f"{r['ratio_1t']:.2f} | {r['cpu_ratio_1t']:.2f} | {r['ns_paper_2t']:.0f} | {r['ns_game_2t']:.0f} | {r['ratio_2t']:.2f} | "
+                   f"{r['ratio_1t']:.2f} | {r['cpu_ratio_1t']:.2f} | {r['ns_paper_2t']:.0f} | {r['ns_game_2t']:.0f} | "
+                   f"{r['ratio_2t']:.2f} | "
                    f"{r['paper_speedup']:.2f} | {r['game_speedup']:.2f} | {r['certificate_share']:.1%} | "
                    f"{r['max_relative_gap']:.2%} |")
     if per:

@@ -11,7 +11,8 @@ figure ``staghunt plan --dry-run`` prints). Target: within 25 %.
 The runs use the ``paper`` method (one swarm per UAV, the largest swarm arrays of any method)
 with one iteration, no certificate and no figures, so that the swarm arrays dominate and each
 run takes seconds (``--method game --iterations 20`` checks the default method: its rigid
-seed must take at least one step, or the zero-filled velocity array is never touched). Needs a warm Numba cache (run any plan once first).
+seed must take at least one step, or the zero-filled velocity array is never touched). Needs a
+warm Numba cache (run any plan once first).
 """
 
 from __future__ import annotations
@@ -76,7 +77,7 @@ def main() -> int:
                       f"{row['measured'] / 2**20:.0f} MiB", file=sys.stderr)
     mib = 2**20
     print(f"{args.scenario}, method {args.method}, {args.iterations} iteration(s), no certificate:\n")
-    print(f"| engine | particles | estimate (MiB) | of which arrays | measured peak RSS (MiB) | measured / estimate |")
+    print("| engine | particles | estimate (MiB) | of which arrays | measured peak RSS (MiB) | measured / estimate |")
     print("|---|---:|---:|---:|---:|---:|")
     for r in rows:
         print(f"| {r['engine']} | {r['particles']:,} | {r['estimate'] / mib:.0f} | {r['arrays'] / mib:.0f} | "

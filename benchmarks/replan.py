@@ -8,9 +8,9 @@ Episodes (each seeded; the same command gives the same episodes and flights):
 
 - **scenario 2** (3 UAVs), planned once at the paper's setting (2000 x 1500, K = 10, seed 1):
   a cylinder of radius 2-6 m appears on a random UAV's route 2-5 s ahead of it (the UAV
-  would touch it 2-5 s after it appears; at a random time in the first 60 % of the flight), and a site vehicle (a cylinder of radius 2.5 m,
-  2-4 m/s, a known motion) crosses the team's route on a straight line across the site,
-  timed to reach the route within +-2 s of the team;
+  would touch it 2-5 s after it appears; at a random time in the first 60 % of the flight), and
+  a site vehicle (a cylinder of radius 2.5 m, 2-4 m/s, a known motion) crosses the team's route
+  on a straight line across the site, timed to reach the route within +-2 s of the team;
 - **site_wedge** (8 UAVs), planned once at its own setting (400 x 300, seed 1): the tower
   crane's jib with its load (a box 3 m wide from 10 to 35 m above ground, 55-70 m long) slews
   into the route (from pointing south to pointing north, 3-8 deg/s, timed to sweep the route

@@ -115,7 +115,7 @@ def test_summary(done, scenario):
     _, report = done
     summary = report.data["summary"]
     assert list(summary) == list(METHODS4)
-    for m, e in summary.items():
+    for e in summary.values():
         assert e["runs"] == len(SEEDS) and len(e["uavs"]) == scenario.n_uavs
         for u in e["uavs"]:
             for key in ("J_mean", "J_std", "lnJ_mean", "path_length_mean", "formation_rms_mean",

@@ -991,7 +991,8 @@ GEO_CASES = {
     "tif_symlink_loop": (lambda t: (os.symlink(t / "g.tif", t / "g.tif"), _geo_scenario(t, _ground(t / "g.tif")))[1],
                          r"ground\.file: the DEM file .*g\.tif' is a symbolic link loop"),
     "tif_cell_0.005": (lambda t: _geo_scenario(t, _ground(_tif(t / "g.tif"), "0.005")),
-                       r"ground\.cell_size: cell_size = 0\.005 m would resample the 100 x 100 m site into a grid of about 4e\+08 nodes"),
+                       r"ground\.cell_size: cell_size = 0\.005 m would resample the 100 x 100 m site into a grid "
+                       r"of about 4e\+08 nodes"),
     "tif_cell_1e-300": (lambda t: _geo_scenario(t, _ground(_tif(t / "g.tif"), "1e-300")),
                         r"ground\.cell_size: cell_size = 1e-300 m would resample .*use a cell_size >= "),
     "geojson_symlink_loop": (lambda t: (os.symlink(t / "b.geojson", t / "b.geojson"),
@@ -1016,7 +1017,8 @@ GEO_CASES = {
     "ring_of_strings": (lambda t: _geo_scenario(t, geojson=_fc(_poly([["a", "b", "c"]], height=5))),
                         r"features\[0\] \('feature 0'\): polygon 0 outer ring: position 0 must be \[longitude, latitude\]"),
     "far_away_1000km": (lambda t: _geo_scenario(t, geojson=_fc(_poly(_square(47.3982, 8.5462), name="block", height=10))),
-                        r"geojson\[0\]\.file: none of the 1 features .* lies \d{4}\.?\d* km from it\); are longitude and latitude swapped"),
+                        r"geojson\[0\]\.file: none of the 1 features .* lies \d{4}\.?\d* km from it\); "
+                        r"are longitude and latitude swapped"),
 }
 
 

@@ -11,7 +11,6 @@ import re
 import zipfile
 import xml.etree.ElementTree as ET
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest

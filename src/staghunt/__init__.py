@@ -9,6 +9,6 @@ from staghunt.solvers.response import Certificate, CertifyOptions
 __version__ = "0.2.0"
 
 __all__ = [
-    "Certificate", "CertifyOptions", "FlightResult", "FlyConfig", "PlanResult", "Scenario", "ScenarioError", "Status", "__version__",
-    "fly", "load_scenario", "plan",
+    "Certificate", "CertifyOptions", "FlightResult", "FlyConfig", "PlanResult", "Scenario", "ScenarioError",
+    "Status", "__version__", "fly", "load_scenario", "plan",
 ]

@@ -2,8 +2,9 @@
 
 One module per group of commands: :mod:`~staghunt.cli.scenarios` (scenarios, show, methods,
 schema), :mod:`~staghunt.cli.plan` (plan, evaluate), :mod:`~staghunt.cli.analysis` (compare,
-certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly); :mod:`~staghunt.cli.common` holds what they share (exit codes, option blocks, error
-lines, the terminal status line).
+certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly);
+:mod:`~staghunt.cli.common` holds what they share (exit codes, option blocks, error lines, the
+terminal status line).
 
 Exit codes:
 

@@ -126,7 +126,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
             f"{scenario.name} / {result.method} / seed {result.seed}: {settings.particles} particles, "
             f"{settings.iterations} iterations, K = {settings.waypoints}; "
             f"{result.evaluations} path evaluations in {result.wall_time_s:.2f} s"
-            + (f" (+ {result.compile_time_s:.2f} s engine start-up, one-time compilation included)" if result.compile_time_s >= 0.05 else "")
+            + (f" (+ {result.compile_time_s:.2f} s engine start-up, one-time compilation included)"
+               if result.compile_time_s >= 0.05 else "")
         )
         print(summary_table(result))
         if result.certificate is not None:

@@ -11,7 +11,8 @@ import numpy as np
 def formation_errors(
     positions: np.ndarray, heads: np.ndarray, tails: np.ndarray, ref_diff: np.ndarray, mu: np.ndarray
 ) -> np.ndarray:
-    """Eq. (5a) of docs/model.md, the edge form. ``positions``: ``(P, N, K, 3)`` absolute. Returns ``E`` ``(P, N, K)`` (no collision test)."""
+    """Eq. (5a) of docs/model.md, the edge form. ``positions``: ``(P, N, K, 3)`` absolute.
+    Returns ``E`` ``(P, N, K)`` (no collision test)."""
     dev = positions[:, heads] - positions[:, tails] - ref_diff[None, :, None, :]  # (P, M, K, 3)
     sq = np.einsum("pmkc,pmkc->pmk", dev, dev)
     return np.einsum("pmk,nm->pnk", sq, mu)

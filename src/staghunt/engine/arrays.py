@@ -28,7 +28,8 @@ def _i64(a: np.ndarray) -> np.ndarray:
 @dataclass(frozen=True, eq=False)
 class ModelArrays:
     """The cost model as kernel arguments: ``uav (N, 11)``, ``weights (N, 5)``, ``cyl (T, 3)``,
-    ``prm (Q, 8)``, ``pedge (E, 4)``, ``heads``/``tails (M,)``, ``mu (N, M)``, ``ref_diff (M, 3)``, ``grid (R, Cg)``, ``par (13,)``."""
+    ``prm (Q, 8)``, ``pedge (E, 4)``, ``heads``/``tails (M,)``, ``mu (N, M)``, ``ref_diff (M, 3)``,
+    ``grid (R, Cg)``, ``par (13,)``."""
 
     uav: np.ndarray
     weights: np.ndarray

@@ -3,13 +3,14 @@
 A swarm run's iterations run in the compiled loop :func:`staghunt.engine.kernels.iterate`
 (Numba's ``prange`` over the blocks, stretches of iterations per call; :class:`BlockRunner`,
 plain Python threads over the ``nogil`` kernels, is the older way, kept for callers that run
-blocks themselves). Every iteration ends at a barrier (the global best needs every particle), and a barrier is what makes
-extra threads *slower* on a busy machine: a thread that shares its core with another process
+blocks themselves). Every iteration ends at a barrier (the global best needs every particle),
+and a barrier is what makes extra threads *slower* on a busy machine: a thread that shares its core with another process
 waits for a whole scheduler time slice while the others idle at the barrier. So the default
 (``threads=None``) is adaptive: :class:`AdaptiveThreads` times iterations with 1 thread and with
 all usable cores in short probes, repeated periodically and whenever the many-thread
-iterations slow down, and keeps the faster for the next stretch. Results never depend on the thread count (counter-based random draws, per-particle
-work, an order-independent reduction), so switching is free.
+iterations slow down, and keeps the faster for the next stretch. Results never depend on the
+thread count (counter-based random draws, per-particle work, an order-independent reduction),
+so switching is free.
 """
 
 from __future__ import annotations

@@ -126,7 +126,8 @@ def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, 
         c2, p2 = dyn.swept(a, b, {name})
         cyl += c2
         prm += p2
-    ends = np.concatenate([to_absolute(scenario.world.terrain, scenario.starts()), to_absolute(scenario.world.terrain, scenario.goals())])
+    g = scenario.world.terrain
+    ends = np.concatenate([to_absolute(g, scenario.starts()), to_absolute(g, scenario.goals())])
     r = np.tile(np.array([u.radius for u in scenario.team]), 2)
     need = scenario.costs.min_clearance
     keep_c = tuple(c for c in cyl if np.all(static_clearance((c,), (), ends[:, None], r) >= need))

@@ -178,8 +178,8 @@ def _paths_axes(fig: Figure, report: CompareReport, records: Sequence[RunRecord]
 
 def plot_compare(report: CompareReport) -> Figure:
     """Box plots of ``J_n`` per UAV per method (log axis; infinite values, which a log axis
-    cannot show, are counted in red under the method's name) above the paths of each method's best seed (least violation, then least
-    ``sum_n ln J_n``)."""
+    cannot show, are counted in red under the method's name) above the paths of each method's
+    best seed (least violation, then least ``sum_n ln J_n``)."""
     records = report.records
     if not records:
         raise ValueError("no finished runs to plot")

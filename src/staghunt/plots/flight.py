@@ -273,8 +273,8 @@ def plot_flight_top(f: _Flight) -> Figure:
             first, end = _circle(xy[k, 0], xy[k, 1], rad), _circle(xy[last, 0], xy[last, 1], rad)
         ax.add_patch(PolygonPatch(first, closed=True, facecolor=_MOVING, alpha=0.35, edgecolor=_MOVING, lw=1.3, zorder=3))
         ax.add_patch(PolygonPatch(end, closed=True, fill=False, edgecolor=_MOVING, ls=":", lw=1.3, zorder=3))
-        ax.annotate(str(m.get("name", "")) + (f" appears {f.t[k]:.1f} s" if k else ""), first.mean(axis=0), ha="center", va="bottom",
-                    fontsize=8.5, color=_MOVING, zorder=6, xytext=(0, 8), textcoords="offset points")
+        ax.annotate(str(m.get("name", "")) + (f" appears {f.t[k]:.1f} s" if k else ""), first.mean(axis=0),
+                    ha="center", va="bottom", fontsize=8.5, color=_MOVING, zorder=6, xytext=(0, 8), textcoords="offset points")
     handles: list[Any] = []
     for n, name in enumerate(f.names):
         col = uav_colour(n)

@@ -91,8 +91,10 @@ class Ground(_Table):
 
     kind: Literal["flat", "dem", "geotiff"] = "flat"
     file: Optional[str] = Field(None, description="DEM file (.npy, .tif, .tiff), relative to the scenario file")
-    nodata_fill: Optional[Number] = Field(None, description="geotiff: elevation (m AMSL) used where the DEM has no data; default: no data under the site is an error")
-    origin: Annotated[list[Number], Field(min_length=2, max_length=2, description="[x0, y0]: site coordinates of the grid's first cell centre")] = [0.0, 0.0]
+    nodata_fill: Optional[Number] = Field(None, description="geotiff: elevation (m AMSL) used where the DEM has no data; "
+        "default: no data under the site is an error")
+    origin: Annotated[list[Number], Field(min_length=2, max_length=2, description="[x0, y0]: site coordinates of the "
+        "grid's first cell centre")] = [0.0, 0.0]
     cell_size: Annotated[float, Field(gt=0, description="grid spacing (m)")] = 1.0
     sampling: Literal["nearest", "bilinear"] = "nearest"
     shape: Optional[list[int]] = Field(None, description="integrity check: [rows, columns] of the grid")
@@ -187,7 +189,8 @@ class GeoJsonTable(_Table):
 class Airspace(_Table):
     """Limits of the airspace."""
 
-    ceiling: Optional[Number] = Field(None, description="altitude ceiling: absolute z in the site frame (m above the origin's altitude)")
+    ceiling: Optional[Number] = Field(None, description="altitude ceiling: absolute z in the site frame "
+        "(m above the origin's altitude)")
 
 
 class Fleet(_Table):
@@ -197,7 +200,8 @@ class Fleet(_Table):
     template: Literal["line", "wedge", "grid", "circle"]
     spacing: Annotated[float, Field(gt=0, description="m between neighbours of the template")]
     columns: Optional[Annotated[int, Field(ge=1)]] = Field(None, description="grid: UAVs per row; default ceil(sqrt(count))")
-    heading_deg: Optional[Number] = Field(None, description="direction the formation faces, degrees counter-clockwise from east; default: team start to team goal")
+    heading_deg: Optional[Number] = Field(None, description="direction the formation faces, degrees counter-clockwise "
+        "from east; default: team start to team goal")
     start: Optional[XYH] = Field(None, description="team start: the formation's centre")
     goal: Optional[XYH] = Field(None, description="team goal: the formation's centre")
     starts: Optional[list[XYH]] = Field(None, description="per-UAV starts instead of start")
@@ -225,7 +229,8 @@ class Uav(_Table):
     goal: XYH
     radius: Annotated[float, Field(ge=0, description="body radius r (m)")]
     beta: Annotated[float, Field(ge=0, description="weight of the formation cost in J_n")]
-    weights: Annotated[list[NonNegative], Field(min_length=5, max_length=5, description="[w1, w2, w3, w4, w5]: length, threat, height, turning, climb")]
+    weights: Annotated[list[NonNegative], Field(min_length=5, max_length=5, description="[w1, w2, w3, w4, w5]: length, threat, "
+        "height, turning, climb")]
 
     @model_validator(mode="after")
     def _two_ends(self) -> "Uav":
@@ -249,7 +254,8 @@ class Costs(_Table):
     safe_distance: NonNegative = CostParams.safe_distance
     turning_threshold_deg: Annotated[float, Field(ge=0, le=180)] = CostParams.turning_threshold_deg
     climb_threshold_deg: Annotated[float, Field(ge=0, le=180)] = CostParams.climb_threshold_deg
-    desired_height: Optional[float] = Field(CostParams.desired_height, description="h_ref (m above ground); default: middle of [hmin, hmax]")
+    desired_height: Optional[float] = Field(CostParams.desired_height, description="h_ref (m above ground); default: "
+        "middle of [hmin, hmax]")
     continuous_separation: bool = CostParams.continuous_separation
     min_clearance: NonNegative = CostParams.min_clearance
 
@@ -344,7 +350,8 @@ class EventTable(_Table):
 
     time: Seconds
     kind: Literal["appear", "disappear"]
-    name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="appear: default 'pop-up <i>'; disappear: required")
+    name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="appear: default 'pop-up <i>'; "
+        "disappear: required")
     x: Optional[Number] = None
     y: Optional[Number] = None
     radius: Optional[Annotated[float, Field(gt=0, description="m")]] = None
@@ -381,7 +388,8 @@ class EventTable(_Table):
 class SensingTable(_Table):
     """What the planner learns in flight."""
 
-    range: Annotated[float, Field(gt=0, description="m: an appeared obstacle is sensed once a UAV is this close (horizontally)")] = 40.0
+    range: Annotated[float, Field(gt=0, description="m: an appeared obstacle is sensed once a UAV "
+        "is this close (horizontally)")] = 40.0
     rate: Annotated[float, Field(ge=10, le=100, description="Hz: state feedback and planner ticks")] = 10.0
     position_noise: Annotated[float, Field(ge=0, le=10, description="m, standard deviation of the fed-back positions")] = 0.0
     velocity_noise: Annotated[float, Field(ge=0, le=10, description="m/s, standard deviation of the fed-back velocities")] = 0.0

@@ -163,12 +163,14 @@ def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
         coords = geom.get("coordinates")
         feat = _Feature(i, name, where)
 
-        def number(prop: str, default: float | None = None, positive: bool = False) -> float:
+        def number(prop: str, default: float | None = None, positive: bool = False,
+                   props: dict = props, where: str = where) -> float:  # bound now, not at call time
             v = props.get(prop, default)
             if v is None:
                 raise ScenarioError(f"{where}: the property {prop!r} is missing", key)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or v < 0 or (positive and v == 0):
-                raise ScenarioError(f"{where}: property {prop!r} must be a {'positive' if positive else 'non-negative'} number, got {v!r}", key)
+                raise ScenarioError(f"{where}: property {prop!r} must be a "
+                                    f"{'positive' if positive else 'non-negative'} number, got {v!r}", key)
             if v > MAX_MAGNITUDE:
                 raise ScenarioError(f"{where}: property {prop!r} = {float(v):.3g} is beyond the supported magnitude "
                                     f"{MAX_MAGNITUDE:.0e} m", key)
@@ -193,7 +195,8 @@ def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
                 if feat.height <= feat.base:
                     raise ScenarioError(f"{where}: height {_fmt(feat.height)} must be above base {_fmt(feat.base)}", key)
         else:
-            raise ScenarioError(f"{where}: geometry type {str(gtype)[:40]!r} is not supported (Polygon, MultiPolygon, Point)", key)
+            raise ScenarioError(f"{where}: geometry type {str(gtype)[:40]!r} is not supported "
+                                "(Polygon, MultiPolygon, Point)", key)
         out.append(feat)
     _place_rings(out, key)
     return out

@@ -17,8 +17,8 @@ from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 class SolverOutput:
     """``waypoints``: ``(N, K, 3)`` ``(x, y, h)``; ``history``: ``(I + 1, N)`` per-UAV ``J_n`` of
     the best allocation; ``objective_history``: ``(I + 1, C)``; ``evaluations``: single-UAV path
-    evaluations (summed ``SwarmOutcome.path_evaluations``); ``leader_path``: virtual leader's absolute ``(K + 2, 3)`` path, if any;
-    ``details``: what the method wants recorded about its search (plain JSON-able data)."""
+    evaluations (summed ``SwarmOutcome.path_evaluations``); ``leader_path``: virtual leader's
+    absolute ``(K + 2, 3)`` path, if any; ``details``: what the method wants recorded about its search (plain JSON-able data)."""
 
     waypoints: np.ndarray
     history: np.ndarray

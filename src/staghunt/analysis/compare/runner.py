@@ -28,6 +28,9 @@ from staghunt.costs import CostModel, evaluate
 from staghunt.io.atomic import write_text_atomic
 from staghunt.scenario.model import Scenario, SolverSettings
 
+DEFAULT_CERTIFY = CertifyOptions()
+"""The certificate of every run unless told otherwise (frozen: one shared default is safe)."""
+
 
 def record_from_files(
     scenario: Scenario, model: CostModel, result_path: Path, cert_path: Path | None
@@ -95,7 +98,7 @@ def run_compare(
     methods: Sequence[str] = DEFAULT_METHODS,
     seeds: Sequence[int] = tuple(range(1, 11)),
     settings: SolverSettings | None = None,
-    certify: CertifyOptions | None = CertifyOptions(),
+    certify: CertifyOptions | None = DEFAULT_CERTIFY,
     listener: CompareListener | None = None,
     plan_options: dict[str, Any] | None = None,
 ) -> CompareReport:
