@@ -10,23 +10,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from staghunt import plan
 from staghunt.cli import main
 from staghunt.flight import mission as fm_flight
 from staghunt.flight.mission import judge_mission, read_trajectories_csv
-from staghunt.io.result_json import write_result
 from staghunt.missions import formats as fm
 from staghunt.scenario import load_scenario
-
-
-@pytest.fixture(scope="module")
-def planned(tmp_path_factory):
-    scenario = load_scenario("scenario2")
-    result = plan(scenario, "rigid", 1, scenario.solver.with_(particles=200, iterations=60), engine="numba")
-    assert result.feasible, result.message
-    path = tmp_path_factory.mktemp("plan") / "result.json"
-    write_result(result, path)
-    return scenario, result, path
 
 
 def test_trajectories_csv_reads_back_and_bad_files_are_refused():

@@ -51,16 +51,6 @@ KML = "{http://www.opengis.net/kml/2.2}"
 
 
 @pytest.fixture(scope="module")
-def planned(tmp_path_factory):
-    scenario = load_scenario("scenario2")
-    result = plan(scenario, "rigid", 1, scenario.solver.with_(particles=200, iterations=60), engine="numba")
-    assert result.feasible, result.message
-    path = tmp_path_factory.mktemp("plan") / "result.json"
-    write_result(result, path)
-    return scenario, result, path
-
-
-@pytest.fixture(scope="module")
 def exported(planned, tmp_path_factory):
     _, _, path = planned
     out = tmp_path_factory.mktemp("mission")

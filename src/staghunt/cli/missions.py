@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from staghunt.cli.common import EXIT_NEGATIVE, EXIT_OK, PROG, command, error, one_line
 
@@ -33,27 +33,32 @@ def join_negative_values(argv: Sequence[str]) -> list[str]:
     return out
 
 
+def _arg_type(parse: Callable[[str], Any], name: str) -> Callable[[str], Any]:
+    """An argparse ``type`` from a library parser: its ``ValueError`` becomes argparse's one-line
+    error (exit 2), which names the option as ``name``."""
+    def convert(text: str) -> Any:
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = name
+    return convert
+
+
 def _origin(text: str) -> Any:
     from staghunt.geo import parse_origin
 
-    try:
-        return parse_origin(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-_origin.__name__ = "origin"
+    return _arg_type(parse_origin, "origin")(text)
 
 
 def _altitude_frame(text: str) -> str:
     from staghunt.missions.export import parse_altitude_frame
 
-    try:
-        return parse_altitude_frame(text)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
+    return _arg_type(parse_altitude_frame, "altitude frame")(text)
 
 
+_origin.__name__ = "origin"
 _altitude_frame.__name__ = "altitude frame"
 
 

@@ -102,7 +102,7 @@ class FlyConfig:
     certify_particles: int = 200
     certify_iterations: int = 100
     epsilon: float = 0.01
-    certify_rounds: int = 2
+    certify_rounds: int = 4
     reply_start: float = 0.1
     attempts: int = 3
     window_pad: float = 3.0

@@ -100,20 +100,32 @@ def _json_kind(v: object) -> str:
     return "an object" if isinstance(v, dict) else type(v).__name__
 
 
+def _valid_lonlat(value: object) -> np.ndarray | None:
+    """``(M, 2)`` longitudes and latitudes of ``value`` (a list of ``[lon, lat(, h)]``) if it
+    converts in one go and every position is finite and in range; ``None`` otherwise (the
+    caller then checks position by position, to name the bad one)."""
+    try:
+        a = np.array(value)
+    except (ValueError, TypeError, OverflowError):
+        return None
+    if a.ndim != 2 or a.shape[1] not in (2, 3) or a.dtype.kind not in "fi":
+        return None
+    ll = a[:, :2].astype(float)
+    with np.errstate(invalid="ignore"):
+        if np.isfinite(ll).all() and (np.abs(ll[:, 0]) <= 180.0).all() and (np.abs(ll[:, 1]) <= 90.0).all():
+            return ll
+    return None
+
+
+
 def _positions(value: Any, where: str, key: str) -> np.ndarray:
     """A GeoJSON array of positions ``[lon, lat(, alt)]`` -> ``(n, 2)`` lon/lat, checked: numbers,
     finite, longitude in [-180, 180], latitude in [-90, 90]."""
     if not isinstance(value, list) or not value:
         raise ScenarioError(f"{where}: expected an array of [longitude, latitude] positions, got {_json_kind(value)}", key)
-    try:  # fast path (a city's worth of buildings): one conversion, checks on the whole array
-        a = np.array(value)
-    except (ValueError, TypeError, OverflowError):
-        a = None
-    if a is not None and a.ndim == 2 and a.shape[1] in (2, 3) and a.dtype.kind in "fi":
-        ll = a[:, :2].astype(float)
-        with np.errstate(invalid="ignore"):
-            if np.isfinite(ll).all() and (np.abs(ll[:, 0]) <= 180.0).all() and (np.abs(ll[:, 1]) <= 90.0).all():
-                return ll
+    ll = _valid_lonlat(value)  # fast path (a city's worth of buildings): checks on the whole array
+    if ll is not None:
+        return ll
     out = np.empty((len(value), 2))
     for k, p in enumerate(value):
         if not isinstance(p, list) or not 2 <= len(p) <= 3 or not all(
@@ -208,15 +220,7 @@ def _place_rings(feats: list[_Feature], key: str) -> None:
     raw = [r for f in feats for r, _ in f.raw]
     flat = None
     if all(isinstance(r, list) and r for r in raw):
-        try:
-            a = np.array(list(itertools.chain.from_iterable(raw)))
-        except (ValueError, TypeError, OverflowError):
-            a = None
-        if a is not None and a.ndim == 2 and a.shape[1] in (2, 3) and a.dtype.kind in "fi":
-            ll = a[:, :2].astype(float)
-            with np.errstate(invalid="ignore"):
-                if np.isfinite(ll).all() and (np.abs(ll[:, 0]) <= 180.0).all() and (np.abs(ll[:, 1]) <= 90.0).all():
-                    flat = ll
+        flat = _valid_lonlat(list(itertools.chain.from_iterable(raw)))
     if flat is None:
         for f in feats:
             f.rings = [_positions(r, label, key) for r, label in f.raw]
