@@ -279,18 +279,23 @@ class Replanner:
         """Certify ``plan`` (spliced as ``new_ref``); while a certificate finds a better reply
         and ``certify_rounds`` allow, adopt the worst UAV's reply when the plan stays feasible,
         its timing from ``splice`` = ``(base, t0, max_stretch)`` meets the limits and it passes
-        the in-time check, then certify again. Returns the reference flown and the last
-        certificate."""
+        the in-time check, then certify again. One UAV's better reply can widen the others' gaps
+        (best-response dynamics need not settle in a few steps), so the plan returned is the
+        certified one with the least largest relative gap: never worse than the first. Returns
+        that plan's reference and its certificate."""
         cfg = self.config
         model = CostModel.from_scenario(sub)
         base, t0, max_stretch = splice
         runner, workers = side_by_side(self.engine)
+        best: tuple[Reference, Any] | None = None
         for round_ in range(cfg.certify_rounds + 1):
             cert = certify_plan(sub, plan, particles=cfg.certify_particles,
                                 iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
                                 epsilon=cfg.epsilon, settings=settings, runner=runner,
                                 azimuth=self._azimuth, workers=workers)
             self._spent += sum(u.evaluations for u in cert.uavs)
+            if best is None or cert.max_relative_gap < best[1].max_relative_gap:
+                best = (new_ref, cert)
             worst = cert.uavs[cert.worst] if cert.uavs else None
             if cert.is_equilibrium or round_ == cfg.certify_rounds or worst is None or worst.deviation is None:
                 break
@@ -304,7 +309,7 @@ class Replanner:
             if spliced is None:
                 break
             plan, new_ref = candidate, spliced
-        return new_ref, cert
+        return best
 
     def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float
                 ) -> tuple[Reference | None, list[str], list[tuple[str, float, float]] | None]:
