@@ -338,7 +338,7 @@ def test_flight_files_and_fly_from_a_result_file(tmp_path, calm):
     from staghunt.io.flight_files import write_flight
     from staghunt.io.result_json import write_result
 
-    files = write_flight(calm, tmp_path, plots=False)
+    files = write_flight(calm, tmp_path)
     assert {p.name for p in files} == {"flight.csv", "replans.json", "flight.json"}
     rows = list(csv.DictReader((tmp_path / "flight.csv").open()))
     assert set(rows[0]) >= {"t", "uav", "x", "y", "z", "ref_x", "ref_y", "ref_z", "error"}

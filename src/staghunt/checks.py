@@ -13,7 +13,7 @@ from staghunt.costs.formation import (
     nearest_waypoint_distance,
 )
 from staghunt.costs.model import CostModel, full_paths, to_absolute
-from staghunt.costs.prisms import prism_distance
+from staghunt.world.geometry import prism_distance
 from staghunt.costs.single import segment_axis_distance
 
 

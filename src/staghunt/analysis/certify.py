@@ -12,6 +12,7 @@ from typing import Any, Callable
 import numpy as np
 
 from staghunt.engine import Engine, get_engine
+from staghunt.io.certificate import certificate_to_dict
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.response import (
     DEFAULT_EPSILON,
@@ -195,44 +196,6 @@ def _with_note(cert: Certificate, note: str) -> Certificate:
 # ------------------------------------------------------------------------------------------------
 # Reporting
 # ------------------------------------------------------------------------------------------------
-
-
-def _num(v: float | None) -> float | str | None:
-    if v is None:
-        return None
-    if math.isinf(v):
-        return "inf" if v > 0 else "-inf"
-    return float(v)
-
-
-def certificate_to_dict(cert: Certificate) -> dict[str, Any]:
-    """Strict-JSON-able form (infinity as the string ``"inf"``, full precision)."""
-    return {
-        "status": cert.status,
-        "verdict": cert.verdict,
-        "epsilon": cert.epsilon,
-        "epsilon_kind": "relative (gap / J_n of the plan)",
-        "max_relative_gap": _num(cert.max_relative_gap),
-        "max_gap": _num(cert.max_gap),
-        "worst_uav": cert.uavs[cert.worst].name if cert.uavs else None,
-        "particles": cert.particles,
-        "iterations": cert.iterations,
-        "seed": cert.seed,
-        "notes": list(cert.notes),
-        "uavs": [
-            {
-                "name": u.name,
-                "J_n": _num(u.current),
-                "best_response_J_n": _num(u.best),
-                "gap": _num(u.gap),
-                "relative_gap": _num(u.relative),
-                "roundtrip_error": u.roundtrip_error,
-                "evaluations": u.evaluations,
-                "best_response_waypoints": None if u.deviation is None else np.asarray(u.deviation).tolist(),
-            }
-            for u in cert.uavs
-        ],
-    }
 
 
 def certificate_table(cert: Certificate) -> str:

@@ -39,7 +39,7 @@ __all__ = ["ProgressReporter", "build_parser", "main", "summary_table"]
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from staghunt import __version__
+    from staghunt._version import __version__
 
     parser = Parser(
         prog=PROG,

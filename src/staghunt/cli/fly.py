@@ -83,7 +83,7 @@ def cmd_fly(args: argparse.Namespace) -> int:
     from dataclasses import replace
 
     from staghunt.flight import FlyConfig, fly
-    from staghunt.io.flight_files import write_flight, write_flight_figures
+    from staghunt.io.flight_files import write_flight
 
     out_dir = Path(args.out)
     check_out_dir(out_dir, "flight.json")
@@ -110,9 +110,11 @@ def cmd_fly(args: argparse.Namespace) -> int:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise ValueError(f"cannot create output directory {str(out_dir)!r}: {os_reason(exc)}") from None
-    files = write_flight(result, out_dir, plots=False)
+    files = write_flight(result, out_dir)
     if not args.no_plots:
         try:
+            from staghunt.plots.flight_files import write_flight_figures  # matplotlib only when drawing
+
             files += write_flight_figures(result, out_dir)
         except KeyboardInterrupt:
             raise

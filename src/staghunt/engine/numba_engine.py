@@ -189,10 +189,8 @@ def _compile_part(names: str) -> None:
 
 def _spawn_helper(entries: Iterable[str]) -> subprocess.Popen[bytes] | None:
     """Start a subprocess compiling ``entries`` into the shared cache (``None`` if it cannot start)."""
-    import staghunt
-
     env = dict(os.environ)
-    root = os.path.dirname(os.path.dirname(os.path.abspath(staghunt.__file__)))
+    root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # src/
     env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
     code = f"from staghunt.engine.numba_engine import _compile_part; _compile_part({','.join(entries)!r})"
     try:

@@ -13,7 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from staghunt.costs.prisms import point_segment_distance
+from staghunt.world.geometry import point_segment_distance
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
 

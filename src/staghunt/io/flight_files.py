@@ -177,10 +177,10 @@ def flight_dict(result: Any, max_samples: int = 1500) -> dict[str, Any]:
     }
 
 
-def write_flight(result: Any, out_dir: str | os.PathLike[str], plots: bool = True) -> list[Path]:
-    """Write ``flight.csv``, ``replans.json``, ``flight.json`` and (``plots``) the figures, the
-    animation ``flight.gif`` and ``replay.html`` into ``out_dir`` (which must exist); returns
-    the paths written."""
+def write_flight(result: Any, out_dir: str | os.PathLike[str]) -> list[Path]:
+    """Write ``flight.csv``, ``replans.json`` and ``flight.json`` into ``out_dir`` (which must
+    exist); returns the paths written. The figures, ``flight.gif`` and ``replay.html``:
+    :func:`staghunt.plots.flight_files.write_flight_figures`."""
     out = Path(out_dir)
     files = [
         write_text_atomic(flight_csv(result), out / "flight.csv"),
@@ -188,18 +188,4 @@ def write_flight(result: Any, out_dir: str | os.PathLike[str], plots: bool = Tru
                           out / "replans.json"),
         write_json_atomic(flight_summary(result), out / "flight.json"),
     ]
-    return files + write_flight_figures(result, out) if plots else files
-
-
-def write_flight_figures(result: Any, out_dir: str | os.PathLike[str]) -> list[Path]:
-    """Write the five figures, ``flight.gif`` and ``replay.html`` of ``result`` into ``out_dir``."""
-    from staghunt.plots.animation import flight_animation
-    from staghunt.plots.flight import flight_figures
-    from staghunt.plots.replay import write_replay_html
-
-    out = Path(out_dir)
-    data = flight_dict(result)
-    files = flight_figures(data, out)
-    files.append(flight_animation(data, out / "flight.gif"))
-    write_replay_html(out / "replay.html", data)
-    return files + [out / "replay.html"]
+    return files

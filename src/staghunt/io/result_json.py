@@ -53,7 +53,9 @@ from typing import Any
 
 import numpy as np
 
+from staghunt._version import __version__
 from staghunt.io.atomic import write_text_atomic
+from staghunt.io.certificate import certificate_to_dict
 
 from staghunt.costs import TERM_NAMES
 
@@ -148,8 +150,6 @@ def result_to_dict(result: Any) -> dict[str, Any]:
     Raises ``ValueError`` naming the field if any value is ``NaN``.
     """
     # Imported here: staghunt.scenario / checks pull in the whole package.
-    import staghunt
-    from staghunt.analysis.certify import certificate_to_dict
     from staghunt.checks import violations
     from staghunt.costs import CostModel
     from staghunt.scenario import scenario_to_dict
@@ -204,7 +204,7 @@ def result_to_dict(result: Any) -> dict[str, Any]:
 
     out: dict[str, Any] = {
         "format": FORMAT,
-        "version": staghunt.__version__,
+        "version": __version__,
         "notes": {"infinity": INFINITY_NOTE, "paths": _PATH_NOTE, "history": _HISTORY_NOTE},
         "method": result.method,
         "seed": int(result.seed),

@@ -35,7 +35,8 @@ from staghunt.scenario.dem import (
 from staghunt.scenario.errors import ScenarioError, fmt
 from staghunt.scenario.model import CostParams, Scenario, SolverSettings
 from staghunt.task import UAV, Formation, VehicleLimits, Weights, is_connected
-from staghunt.world import Bounds, Cylinder, GeoOrigin, Terrain, World
+from staghunt.world import Bounds, Cylinder, GeoOrigin, Terrain, World, prism_arrays
+from staghunt.world.geometry import prism_distance
 
 if TYPE_CHECKING:
     from staghunt.scenario.schema import Fleet, FormationTable, Ground, Uav
@@ -274,9 +275,6 @@ def _check_team_in_world(team: Sequence[UAV], world: World, costs: CostParams) -
 def _check_points_clear(team: Sequence[UAV], world: World, absolute: np.ndarray, end: str) -> None:
     """Starts or goals ``absolute`` ``(N, 3)`` outside every prism and no-fly zone (grown by the
     body radius, as the cost model judges them) and below the ceiling."""
-    from staghunt.costs.prisms import prism_distance
-    from staghunt.world import prism_arrays
-
     if world.prisms:
         prm, edges = prism_arrays(world.prisms)
         radius = np.array([u.radius for u in team], dtype=float)
