@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import io
 import json
 import math
@@ -136,12 +138,13 @@ def test_plan_infeasible_exit_3_still_writes(tmp_path, capsys, monkeypatch):
     scenario = load_scenario("scenario1")
     real_plan = staghunt.api.plan
 
-    def straight_plan(scn, method, seed, settings, progress, **engine):
-        real = real_plan(scn, method, seed, settings.with_(iterations=0), progress, **engine)
+    def straight_plan(request, progress=None, **kw):  # the CLI runs the request it checked
+        settings = request.settings
+        real = real_plan(replace(request, settings=settings.with_(iterations=0)), progress=progress)
         s, g = scenario.starts(), scenario.goals()
         t = np.arange(1, settings.waypoints + 1) / (settings.waypoints + 1)
         wp = s[:, None, :] + t[None, :, None] * (g - s)[:, None, :]
-        return staghunt.api.assemble(scn, method, seed, settings, wp, real.history,
+        return staghunt.api.assemble(request.scenario, request.method, request.seed, settings, wp, real.history,
                                      real.objective_history, real.evaluations, real.wall_time_s)
 
     monkeypatch.setattr(staghunt.api, "plan", straight_plan)
@@ -153,7 +156,7 @@ def test_plan_infeasible_exit_3_still_writes(tmp_path, capsys, monkeypatch):
 
 
 def test_plan_keyboard_interrupt(tmp_path, capsys, monkeypatch):
-    def interrupted(scn, method, seed, settings, progress, **engine):
+    def interrupted(request, progress=None, **kw):
         progress(1, 5, np.array([1.0, 2.0, 3.0]))
         raise KeyboardInterrupt
 

@@ -212,7 +212,8 @@ def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings,
     assert not data["complete"] and data["missing"] == ["rigid-s2"]
     calls = []
     real = staghunt.api.plan
-    monkeypatch.setattr(staghunt.api, "plan", lambda *a, **k: calls.append(a[1:3]) or real(*a, **k))
+    monkeypatch.setattr(staghunt.api, "plan", lambda request, **k: calls.append((request.method, request.seed))
+                        or real(request, **k))
     report = run_compare(scenario, tmp_path, methods=("game", "rigid"), seeds=(1, 2), settings=settings,
                          certify=None, plan_options={"engine": "numpy"})
     assert calls == [("rigid", 2)] and report.complete

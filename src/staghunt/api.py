@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from typing import Any, Callable
 
 import numpy as np
 
-from staghunt.budget import check_memory, estimate_plan
+from staghunt.budget import MemoryEstimate, check_memory, estimate_plan
 from staghunt.checks import plan_metrics, violations
 from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
 from staghunt.engine import Engine, get_engine, side_by_side
@@ -23,8 +23,43 @@ from staghunt.solvers.response import Certificate, CertifyOptions, certify_plan
 from staghunt.solvers.swarm import Progress
 
 
+@dataclass(frozen=True, eq=False)
+class PlanRequest:
+    """A run that :func:`check_plan` has checked: the scenario, method, seed, solver settings,
+    the resolved engine, the certificate's options (``None``: none), the stopping rule and the
+    memory estimate. :func:`plan` runs it without checking anything again."""
+
+    scenario: Scenario
+    method: str
+    seed: int
+    settings: SolverSettings
+    engine: Engine
+    certify: CertifyOptions | None
+    stop: str
+    estimate: MemoryEstimate
+
+    def with_seed(self, seed: int) -> "PlanRequest":
+        """The same run with another seed (the only field checked again)."""
+        _check_seed(seed)
+        return replace(self, seed=int(seed))
+
+
+class PlanRequestError(ValueError):
+    """A run :func:`check_plan` refuses; ``field`` names the argument at fault (``method``,
+    ``seed``, ``settings``, ``certify``, ``stop``) so that a caller can word it its own way."""
+
+    def __init__(self, message: str, field: str) -> None:
+        super().__init__(message)
+        self.field = field
+
+
+def _check_seed(seed: Any) -> None:
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise PlanRequestError(f"seed must be an integer >= 0, got {seed!r}", "seed")
+
+
 def plan(
-    scenario: Scenario | str | os.PathLike[str],
+    scenario: "Scenario | str | os.PathLike[str] | PlanRequest",
     method: str = "game",
     seed: int = 0,
     settings: SolverSettings | None = None,
@@ -37,7 +72,9 @@ def plan(
 ) -> PlanResult:
     """Plan paths for the team of ``scenario`` with ``method`` (see ``staghunt.solvers.METHODS``).
 
-    ``scenario``: a :class:`Scenario`, a built-in name or a TOML path. ``settings`` overrides the
+    ``scenario``: a :class:`Scenario`, a built-in name or a TOML path; or a :class:`PlanRequest`
+    from :func:`check_plan`, run as checked (``method``, ``seed``, ``settings``, ``engine``,
+    ``threads``, ``certify`` and ``stop`` are then taken from it, not from the arguments). ``settings`` overrides the
     scenario's solver settings. One ``numpy.random.Generator`` seeded with ``seed`` drives the
     whole run, so the same inputs, seed and engine give the same plan.
 
@@ -61,16 +98,17 @@ def plan(
     same search on the same plan; its time counts in ``certificate_time_s``). For a closed-loop
     re-planner: the time to a certified equilibrium rather than the best plan of the budget.
     """
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    settings = settings if settings is not None else scenario.solver
-    resolved = check_plan(scenario, method, seed, settings, engine, threads, certify)
+    if isinstance(scenario, PlanRequest):
+        request = scenario
+    else:
+        if not isinstance(scenario, Scenario):
+            scenario = load_scenario(scenario)
+        request = check_plan(scenario, method, seed, settings if settings is not None else scenario.solver,
+                             engine, threads, certify, stop=stop)
+    scenario, method, seed, settings = request.scenario, request.method, request.seed, request.settings
+    certify, stop, resolved = request.certify, request.stop, request.engine
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
-    if stop not in ("budget", "certified"):
-        raise ValueError(f"stop must be 'budget' or 'certified', not {stop!r}")
-    if stop == "certified" and certify is None:
-        raise ValueError("stop='certified' needs certify (the certificate's budget)")
     checks: list[tuple[np.ndarray, Certificate, float]] = []
 
     def certified(wp: np.ndarray) -> bool:
@@ -119,32 +157,39 @@ def check_plan(
     threads: int | None = None,
     certify: CertifyOptions | None = None,
     warn: Callable[[str], None] | None = None,
-) -> Engine:
-    """Every check :func:`plan` makes before it starts (the CLI makes them before it creates the
-    output directory): the method, the seed, the settings, the certificate's budget and whether
-    these settings can certify at all, the engine, and whether the run fits in memory
-    (:mod:`staghunt.budget`; ``warn`` receives the warning above a quarter of the available
-    memory). Returns the resolved engine; raises ``ValueError`` with one line."""
+    stop: str = "budget",
+    memory: bool = True,
+) -> PlanRequest:
+    """Every check :func:`plan` needs, made once, before anything runs (the CLI makes them before
+    it creates the output directory): the method, the seed, the settings, the certificate's
+    budget and whether these settings can certify at all, the stopping rule, the engine, and
+    (``memory``) whether the run fits in memory (:mod:`staghunt.budget`; ``warn`` receives the
+    warning above a quarter of the available memory). Returns the checked
+    :class:`PlanRequest`; raises :class:`PlanRequestError` (or
+    :class:`~staghunt.budget.MemoryBudgetError`), ``ValueError`` subclasses, with one line."""
     if method not in METHODS:
-        raise ValueError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}")
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
-    check_settings(settings)
-    if certify is not None:
-        certify.check()
-        if settings.c1 == 0 and settings.c2 == 0 and certify.iterations > 0:
-            # Refused by the certificate itself, but only after the search: check it now.
-            raise ValueError("solver settings: c1 and c2 are both 0, so the certificate's search "
-                             "cannot move towards any better path; give c1 or c2 > 0, or skip the "
-                             "certificate (--no-certify)")
+        raise PlanRequestError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}", "method")
+    _check_seed(seed)
+    try:
+        check_settings(settings)
+        if certify is not None:
+            certify.check()
+    except ValueError as exc:
+        raise PlanRequestError(str(exc), "settings" if certify is None else "certify") from None
+    if certify is not None and settings.c1 == 0 and settings.c2 == 0 and certify.iterations > 0:
+        # Refused by the certificate itself, but only after the search: check it now.
+        raise PlanRequestError("solver settings: c1 and c2 are both 0, so the certificate's search cannot "
+                               "move towards any better path; give c1 or c2 > 0, or skip the certificate",
+                               "certify")
+    if stop not in ("budget", "certified"):
+        raise PlanRequestError(f"stop must be 'budget' or 'certified', not {stop!r}", "stop")
+    if stop == "certified" and certify is None:
+        raise PlanRequestError("stop='certified' needs certify (the certificate's budget)", "stop")
     resolved = get_engine(engine, threads)
-    # Before anything is allocated: a run that cannot fit in memory is refused with one line.
-    check_memory(estimate_plan(scenario, settings, method, resolved, threads, certify), warn=warn)
-    return resolved
-
-
-validate_settings = check_settings
-"""Alias kept for callers of staghunt 0.1."""
+    estimate = estimate_plan(scenario, settings, method, resolved, threads, certify)
+    if memory:  # before anything is allocated: a run that cannot fit in memory is refused
+        check_memory(estimate, warn=warn)
+    return PlanRequest(scenario, method, int(seed), settings, resolved, certify, stop, estimate)
 
 
 def assemble(

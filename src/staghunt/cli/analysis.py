@@ -26,8 +26,8 @@ from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecor
 from staghunt.cli.common import (  # the shared options, exit codes and error lines
     EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options,
     add_engine_options, add_quiet_option, add_run_options, add_scenario_argument, budget_settings,
-    certify_options, check_out_dir, check_path_lengths, command, engine_kwargs, error, int_at_least,
-    one_line, os_reason, path_argument, safe_name, say,
+    certify_options, check_out_dir, check_path_lengths, checked_request, command, engine_kwargs, error,
+    int_at_least, one_line, os_reason, path_argument, safe_name, say,
 )
 from staghunt.io.numbers import number_text
 
@@ -152,10 +152,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
         settings = budget_settings(scenario, args)
         out = Path(args.out) if args.out is not None else Path("runs") / f"{safe_name(scenario.name)}-compare"
         check_out_dir(out)
-        from staghunt.api import check_plan
-
         for m in methods:  # every run must be possible (and fit in memory) before the first starts
-            check_plan(scenario, m, 0, settings, args.engine, args.threads, certify_options(args), warn=say)
+            checked_request(scenario, settings, args, certify_options(args), method=m)
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
     certify = certify_options(args)

@@ -110,13 +110,34 @@ def add_budget_options(p: argparse.ArgumentParser) -> None:
 
 
 def budget_settings(scenario: Any, args: argparse.Namespace) -> Any:
-    """The scenario's solver settings with the budget options applied, validated."""
-    from staghunt.api import validate_settings
+    """The scenario's solver settings with the budget options applied (checked with the rest of
+    the run by :func:`checked_request`)."""
+    return scenario.solver.with_(particles=args.particles, iterations=args.iterations,
+                                 waypoints=args.waypoints)
 
-    settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations,
-                                     waypoints=args.waypoints)
-    validate_settings(settings)
-    return settings
+
+REQUEST_FLAGS = {
+    "method": "--method",
+    "seed": "--seed",
+    "settings": "--particles, --iterations, --waypoints or the scenario's [solver]",
+    "certify": "--certify-particles, --certify-iterations, --epsilon; --no-certify skips the certificate",
+    "stop": "--stop certified; drop --no-certify",
+}
+"""How the command line names each field of a refused run (:class:`staghunt.api.PlanRequestError`)."""
+
+
+def checked_request(scenario: Any, settings: Any, args: argparse.Namespace, certify: Any,
+                    method: str | None = None, memory: bool = True) -> Any:
+    """The run of ``scenario`` checked once (:func:`staghunt.api.check_plan`) with the options in
+    ``args`` (``method`` overrides ``--method``); a refusal is re-worded with the flags at fault."""
+    from staghunt.api import PlanRequestError, check_plan
+
+    try:
+        return check_plan(scenario, method or args.method, getattr(args, "seed", 0), settings,
+                          getattr(args, "engine", "auto"), getattr(args, "threads", None), certify,
+                          warn=say, stop=getattr(args, "stop", "budget"), memory=memory)
+    except PlanRequestError as exc:
+        raise ValueError(f"{exc} ({REQUEST_FLAGS.get(exc.field, exc.field)})") from None
 
 
 def epsilon_value(text: str) -> float:

@@ -18,7 +18,7 @@ import numpy as np
 
 from staghunt.cli.common import (  # the shared options, exit codes and error lines
     EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options, add_run_options,
-    add_scenario_argument, budget_settings, certify_options, check_out_dir, command, engine_kwargs,
+    add_scenario_argument, budget_settings, certify_options, check_out_dir, checked_request, command,
     int_at_least, one_line, os_reason,
     safe_name,
     say,
@@ -89,15 +89,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
         out_dir = Path("runs") / f"{safe_name(scenario.name)}-{args.method}-s{args.seed}"
     check_out_dir(out_dir, "result.json")
     certify = certify_options(args)
+    # Every check, once, before the search and before the directory is made: the method, seed and
+    # settings, whether they can certify, the stopping rule, the engine, the memory the run needs.
+    request = checked_request(scenario, settings, args, certify, memory=not args.dry_run)
     if args.dry_run:
-        return _dry_run(scenario, settings, args, certify, out_dir)
-    from staghunt.api import check_plan
-
-    # Every check before the search and before the directory is made: the method, seed and
-    # settings, whether they can certify, the engine, and the memory the run needs.
-    check_plan(scenario, args.method, args.seed, settings, args.engine, args.threads, certify, warn=say)
-    if args.stop == "certified" and certify is None:
-        raise ValueError("--stop certified needs the certificate (drop --no-certify)")
+        return _dry_run(request, out_dir)
     created = not out_dir.exists()
     try:  # before the search: a plan must never be computed only to be thrown away
         out_dir.mkdir(parents=True, exist_ok=True)
@@ -106,8 +102,7 @@ def cmd_plan(args: argparse.Namespace) -> int:
 
     reporter = ProgressReporter(sys.stderr, quiet=args.quiet)
     try:
-        result = plan(scenario, args.method, args.seed, settings, reporter, certify=certify,
-                      certify_progress=reporter.certifying, stop=args.stop, **engine_kwargs(args))
+        result = plan(request, progress=reporter, certify_progress=reporter.certifying)
     except BaseException:
         if created:  # interrupted or failed: leave no empty directory behind
             try:
@@ -146,16 +141,16 @@ def cmd_plan(args: argparse.Namespace) -> int:
     return EXIT_OK if result.feasible else EXIT_NEGATIVE
 
 
-def _dry_run(scenario: Any, settings: Any, args: argparse.Namespace, certify: Any, out_dir: Path) -> int:
-    """``plan --dry-run``: the budget and the memory estimate; nothing planned, nothing written."""
-    from staghunt.budget import available_memory, estimate_plan, human
-    from staghunt.engine import get_engine
+def _dry_run(request: Any, out_dir: Path) -> int:
+    """``plan --dry-run``: the budget and the memory estimate of the checked ``request``;
+    nothing planned, nothing written."""
+    from staghunt.budget import available_memory, human
 
-    engine = get_engine(args.engine, args.threads)
-    est = estimate_plan(scenario, settings, args.method, engine, args.threads, certify)
+    scenario, settings, certify, engine, est = (request.scenario, request.settings, request.certify,
+                                                request.engine, request.estimate)
     N = scenario.n_uavs
     evals = settings.particles * (settings.iterations + 1) * N
-    print(f"{scenario.name} / {args.method} / seed {args.seed}, engine {engine.name}: "
+    print(f"{scenario.name} / {request.method} / seed {request.seed}, engine {engine.name}: "
           f"{settings.particles} particles x {settings.iterations} iterations, K = {settings.waypoints}, "
           f"{N} UAVs: {evals} path evaluations")
     if certify is not None:

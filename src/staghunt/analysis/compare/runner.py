@@ -105,14 +105,14 @@ def run_compare(
     """Plan ``scenario`` with every method and seed, certify each plan, and aggregate.
 
     ``settings``: the budget of every method (default: the scenario's). ``certify``: the
-    certificate's budget and tolerance, ``None`` to skip certificates. ``plan_options``: extra
-    keyword arguments for :func:`staghunt.plan`; its ``engine`` and ``threads``, if any, also run
-    the certificates' searches. Files go to ``out_dir`` (see
+    certificate's budget and tolerance, ``None`` to skip certificates. ``plan_options``: the
+    ``engine`` and ``threads`` of :func:`staghunt.plan`, which also run the certificates'
+    searches. Files go to ``out_dir`` (see
     the module docstring); a ``KeyboardInterrupt`` leaves every finished run on disk and the
     aggregate files consistent with them. Raises ``ValueError`` for bad input.
     """
     from staghunt.analysis.certify import certificate_to_dict, certify_plan
-    from staghunt.api import plan, validate_settings
+    from staghunt.api import check_plan, plan
     from staghunt.io.result_json import read_result, settings_to_dict, write_json_atomic, write_result
     from staghunt.scenario import scenario_to_dict
     from staghunt.solvers import METHODS
@@ -131,9 +131,11 @@ def run_compare(
     if any(s < 0 for s in seeds):
         raise ValueError("seeds must be integers >= 0")
     settings = settings if settings is not None else scenario.solver
-    validate_settings(settings)
     if certify is not None:
         certify.check()
+    engine_options = {k: v for k, v in (plan_options or {}).items() if k in ("engine", "threads")}
+    # Every method's run checked once (settings, engine, memory); each seed reuses the check.
+    requests = {m: check_plan(scenario, m, seeds[0], settings, **engine_options) for m in methods}
     listener = listener or CompareListener()
     out = Path(out_dir)
     runs_dir = out / "runs"
@@ -147,7 +149,6 @@ def run_compare(
         "settings": _json_normal(settings_to_dict(settings)),
         "scenario": _json_normal(scenario_to_dict(scenario)),
     }
-    engine_options = {k: v for k, v in (plan_options or {}).items() if k in ("engine", "threads")}
     jobs = [(m, s) for s in seeds for m in methods]
     # Check every stored run first, so a mismatch stops the comparison before any work.
     for m, s in jobs:
@@ -166,7 +167,7 @@ def run_compare(
         resumed = rf.exists() and (certify is None or cf.exists())
         if not rf.exists():
             listener.run_started(index, len(jobs), m, s)
-            result = plan(scenario, m, s, settings, listener.plan_progress, **(plan_options or {}))
+            result = plan(requests[m].with_seed(s), progress=listener.plan_progress)
             write_result(result, rf)
         if certify is not None and not cf.exists():
             listener.certify_started(index, len(jobs), m, s)
