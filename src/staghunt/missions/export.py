@@ -164,6 +164,7 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     if flight is not None:
         summary["flight"] = _flight_summary(flight, names)
     files["mission.json"] = json.dumps(summary, indent=1) + "\n"
+
     def figures(stage: Path) -> list[Path]:
         from staghunt.plots.mission import save_mission_figures
 
