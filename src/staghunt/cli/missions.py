@@ -33,29 +33,24 @@ def join_negative_values(argv: Sequence[str]) -> list[str]:
     return out
 
 
-def _arg_type(parse: Callable[[str], Any], name: str) -> Callable[[str], Any]:
-    """An argparse ``type`` from a library parser: its ``ValueError`` becomes argparse's one-line
-    error (exit 2), which names the option as ``name``."""
-    def convert(text: str) -> Any:
-        try:
-            return parse(text)
-        except ValueError as exc:
-            raise argparse.ArgumentTypeError(str(exc)) from None
-
-    convert.__name__ = name
-    return convert
+def _parsed(parse: Callable[[str], Any], text: str) -> Any:
+    """``parse(text)``, its ``ValueError`` turned into argparse's one-line error (exit 2)."""
+    try:
+        return parse(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def _origin(text: str) -> Any:
     from staghunt.geo import parse_origin
 
-    return _arg_type(parse_origin, "origin")(text)
+    return _parsed(parse_origin, text)
 
 
 def _altitude_frame(text: str) -> str:
     from staghunt.missions.export import parse_altitude_frame
 
-    return _arg_type(parse_altitude_frame, "altitude frame")(text)
+    return _parsed(parse_altitude_frame, text)
 
 
 _origin.__name__ = "origin"

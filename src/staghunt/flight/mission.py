@@ -107,29 +107,27 @@ def fly_mission(scenario: Scenario, t: np.ndarray, pos: np.ndarray, vel: np.ndar
     t_end = float(t[-1]) + hold
     steps = math.ceil((t_end - t[0]) / dt)
     team = SimulatedTeam(pos[:, 0], dt, None)
-    rec_t: list[float] = []
+    ticks = float(t[0]) + np.arange(steps + 1) * dt  # (S,)
+    # The reference at every step, sampled once: (4, S, N, 3) position, velocity, acceleration,
+    # jerk; after the last sample, hold its position at rest.
+    ref = np.zeros((4, steps + 1) + pos[:, 0].shape)
+    flying = ticks <= t[-1]
+    for d in range(4):
+        ref[d, flying] = np.moveaxis(curve(ticks[flying], d), 1, 0)
+    ref[0, ~flying] = pos[:, -1]
     rec_x: list[np.ndarray] = []
-    rec_r: list[np.ndarray] = []
-    last = np.stack([pos[:, -1], np.zeros_like(pos[:, -1]), np.zeros_like(pos[:, -1]),
-                     np.zeros_like(pos[:, -1])])
     per_second = max(1, round(sim_rate))
     for k in range(steps + 1):
-        tk = float(t[0]) + k * dt
-        if tk <= t[-1]:
-            ref = np.stack([curve(tk, d) for d in range(4)])  # (4, N, 3)
-        else:
-            ref = last
         if k % RECORD_STEP == 0:
-            rec_t.append(tk)
             rec_x.append(team.positions())
-            rec_r.append(ref[0])
         if k < steps:
-            team.step(tk, ref)
+            team.step(float(ticks[k]), ref[:, k])
         if progress is not None and k % per_second == 0:
-            progress(tk, t_end)
-    times = np.asarray(rec_t)
+            progress(float(ticks[k]), t_end)
+    recorded = slice(None, None, RECORD_STEP)
+    times = ticks[recorded]
     actual = np.stack(rec_x, axis=1)  # (N, T, 3)
-    reference = np.stack(rec_r, axis=1)
+    reference = np.moveaxis(ref[0, recorded], 0, 1)
     return judge_mission(scenario, times, actual, reference, sim_rate, time.perf_counter() - t0)
 
 

@@ -35,6 +35,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from staghunt.task import VehicleLimits
+from staghunt.trajectory.timing import split_legs
 
 CHECK_STEP_S = 0.02
 """Grid of the speed and acceleration checks (s)."""
@@ -141,19 +142,6 @@ def _quintic(times: np.ndarray, points: np.ndarray, v0: np.ndarray, a0: np.ndarr
     return make_interp_spline(times, y, k=5, bc_type=([(1, v0), (2, a0)], [(1, zero), (2, zero)]))
 
 
-def densify(points: np.ndarray, spacing: float) -> np.ndarray:
-    """``(N, M', 3)``: every leg of ``points`` ``(N, M, 3)`` split into equal sub-legs, the same
-    number for the whole team (the longest UAV's leg at most ``spacing`` m per sub-leg), so
-    the waypoints stay shared and a spline through the result stays close to the polyline."""
-    legs = np.linalg.norm(np.diff(points, axis=1), axis=-1).max(axis=0)  # (M - 1,)
-    rows = [points[:, :1]]
-    for k, length in enumerate(legs):
-        m = max(1, math.ceil(length / spacing))
-        f = np.arange(1, m + 1) / m
-        rows.append(points[:, k:k + 1] + f[None, :, None] * (points[:, k + 1:k + 2] - points[:, k:k + 1]))
-    return np.concatenate(rows, axis=1)
-
-
 def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np.ndarray:
     """``(M,)`` waypoint times (from 0) of the team's dense paths ``points`` ``(N, M, 3)``.
 
@@ -195,7 +183,7 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     """Time the team's paths ``points`` ``(N, M, 3)`` (absolute; ``points[:, 0]`` the state at
     ``t0``) starting with velocities ``v0`` and accelerations ``a0`` ``(N, 3)`` (default rest).
 
-    The paths are densified (:func:`densify`), timed by :func:`knot_times`, interpolated by a
+    The paths are densified (:func:`~staghunt.trajectory.timing.split_legs`), timed by :func:`knot_times`, interpolated by a
     quintic spline with the start and end conditions, and, if a peak on the check grid still
     breaks a limit, the whole schedule is stretched. Raises ``ValueError`` if no stretch up to
     ``max_stretch`` within ``max_tries`` meets the limits (the imposed start itself breaks
@@ -208,7 +196,7 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     keep = np.concatenate([[True], legs > 1e-3])
     if keep.sum() < 2:  # nobody moves: hold
         keep[-1] = True
-    dense = densify(p[:, keep], DENSE_SPACING)
+    dense, _ = split_legs(p[:, keep], DENSE_SPACING)
     base = knot_times(dense, limits, float(np.linalg.norm(v0, axis=-1).max()))
     v_lim = MARGIN * limits.max_speed
     # The switch state's own acceleration cannot be undone by a slower schedule.
