@@ -71,7 +71,7 @@ def test_strict_json_and_fields(result, tmp_path, settings):
     assert data["settings"] == {
         "particles": PARTICLES, "iterations": ITERATIONS, "waypoints": K, "c0": settings.c0,
         "damping": settings.damping, "c1": settings.c1, "c2": settings.c2,
-        "velocity_fraction": settings.velocity_fraction,
+        "velocity_fraction": settings.velocity_fraction, "starts": settings.starts,
     }
     assert data["scenario"]["name"] == "scenario1"
     assert len(data["scenario"]["team"]) == n

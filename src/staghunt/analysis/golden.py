@@ -40,14 +40,15 @@ def _dec(v: Any) -> float:
     return math.inf if v == "inf" else (-math.inf if v == "-inf" else float(v))
 
 
-def golden_record(method: str) -> dict[str, Any]:
-    """Plan :data:`SCENARIO` with ``method`` at the golden budget; the record to store or compare."""
+def golden_record(method: str, **settings_changes: Any) -> dict[str, Any]:
+    """Plan :data:`SCENARIO` with ``method`` at the golden budget (``settings_changes``: other
+    solver settings, e.g. ``starts=1``); the record to store or compare."""
     from staghunt.api import plan
     from staghunt.scenario import load_scenario
 
     scenario = load_scenario(SCENARIO)
     scenario = replace(scenario, costs=replace(scenario.costs, min_clearance=0.0))
-    settings = scenario.solver.with_(particles=PARTICLES, iterations=ITERATIONS)
+    settings = scenario.solver.with_(particles=PARTICLES, iterations=ITERATIONS, **settings_changes)
     result = plan(scenario, method, SEED, settings, engine="numpy")
     return {
         "format": FORMAT,

@@ -107,19 +107,22 @@ def add_budget_options(p: argparse.ArgumentParser) -> None:
                    help="swarm iterations (default: the scenario's)")
     p.add_argument("--waypoints", type=int_at_least(1), metavar="N",
                    help="free waypoints K per UAV (default: the scenario's)")
+    p.add_argument("--starts", type=int_at_least(1), metavar="N",
+                   help="starts of the game method's equilibrium search: rigid, independent, weighted, "
+                   "then random allocations (default: the scenario's, 3)")
 
 
 def budget_settings(scenario: Any, args: argparse.Namespace) -> Any:
     """The scenario's solver settings with the budget options applied (checked with the rest of
     the run by :func:`checked_request`)."""
     return scenario.solver.with_(particles=args.particles, iterations=args.iterations,
-                                 waypoints=args.waypoints)
+                                 waypoints=args.waypoints, starts=args.starts)
 
 
 REQUEST_FLAGS = {
     "method": "--method",
     "seed": "--seed",
-    "settings": "--particles, --iterations, --waypoints or the scenario's [solver]",
+    "settings": "--particles, --iterations, --waypoints, --starts or the scenario's [solver]",
     "certify": "--certify-particles, --certify-iterations, --epsilon; --no-certify skips the certificate",
     "stop": "--stop certified; drop --no-certify",
 }

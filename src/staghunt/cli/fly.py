@@ -92,12 +92,12 @@ def cmd_fly(args: argparse.Namespace) -> int:
                "replan_iterations": args.replan_iterations}
     config = replace(config, **{k: v for k, v in changes.items() if v is not None})
     settings = None
-    if args.particles is not None or args.iterations is not None or args.waypoints is not None:
+    if any(v is not None for v in (args.particles, args.iterations, args.waypoints, args.starts)):
         from staghunt.flight.loop import _source
 
         scenario, _, plan_settings = _source(args.source)
         settings = (plan_settings or scenario.solver).with_(
-            particles=args.particles, iterations=args.iterations, waypoints=args.waypoints)
+            particles=args.particles, iterations=args.iterations, waypoints=args.waypoints, starts=args.starts)
 
     def progress(t: float, t_end: float) -> None:
         if not args.quiet and sys.stderr.isatty():

@@ -132,6 +132,8 @@ def cmd_plan(args: argparse.Namespace) -> int:
             print(f"equilibrium certificate ({c.particles} particles x {c.iterations} iterations per "
                   f"UAV, {result.certificate_time_s:.2f} s):")
             print(certificate_table(c))
+        if result.details.get("selection"):
+            print(equilibria_text(result.details["equilibria"], result.details["selection"], result.uav_names))
     print(f"status: {result.message}")
     if result.certificate is not None:
         print(f"verdict: {result.certificate.verdict}")
@@ -207,6 +209,28 @@ def _ln(v: float) -> str:
     if not v > 0:
         return "-"
     return f"{math.log(v):.4f}"
+
+
+def equilibria_text(equilibria: list[dict[str, Any]], selection: dict[str, Any], names: list[str]) -> str:
+    """The equilibria a multi-start search found, one line each, and the selection in plain words."""
+    n = len(equilibria)
+    lines = [f"equilibria found from {selection['starts']} starts: {n} distinct (certified, merged within "
+             "the certificate's tolerance)"]
+    width = max([len(e["start"]) for e in equilibria] + [5])
+    for e in equilibria:
+        mark = "selected" if e["selected"] else ("dominated" if e["dominated"] else "undominated")
+        js = "  ".join(f"{nm} {_g(j)}" for nm, j in zip(names, e["J"]))
+        lines.append(f"  {e['start']:<{width}}  {js}  (gap {e['certificate']['max_relative_gap']:.2%})  {mark}")
+    if n == 0:
+        lines.append(f"  none certified: {selection['rule']}")
+    elif selection["payoff_dominant"] and n > 1:
+        lines.append("  the selected equilibrium is payoff-dominant: it Pareto-dominates every other one found")
+    elif n == 1:
+        lines.append("  one equilibrium found: payoff-dominant among those found only trivially")
+    else:
+        lines.append("  no equilibrium found dominates all the others (no payoff-dominant one among them); "
+                     "selected: the least sum_n ln J_n among the undominated ones (eq. 9c)")
+    return "\n".join(lines)
 
 
 def summary_table(result: Any) -> str:

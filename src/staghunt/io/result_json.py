@@ -22,7 +22,12 @@ Layout (``N`` UAVs, ``K`` free waypoints, ``I`` iterations, ``C`` compared objec
     certificate (null if not certified) {status, verdict, epsilon, max_relative_gap, ...,
         particles, iterations, seed, uavs [N x {name, J_n, best_response_J_n, gap,
         relative_gap, evaluations (the deviation budget), ...}]},
-    settings {particles, iterations, waypoints, c0, damping, c1, c2, velocity_fraction},
+    equilibria (null unless a multi-start game) [each distinct certified equilibrium found:
+        {start, J [N], feasible, evaluations, certificate {status, epsilon, max_relative_gap,
+         relative_gaps [N], particles, iterations}, dominated, selected, same [indices into
+         search.candidates merged into it]}],
+    selection (null unless a multi-start game) {payoff_dominant, rule, found, starts, selected_start},
+    settings {particles, iterations, waypoints, c0, damping, c1, c2, velocity_fraction, starts},
     scenario (staghunt.scenario.scenario_to_dict),
     metrics {collision_free_waypoints, collision_free_continuous, obstacle_free,
              min_separation_waypoints, min_separation_segments, min_clearance},
@@ -215,8 +220,11 @@ def result_to_dict(result: Any) -> dict[str, Any]:
         "compile_time_s": encode_number(result.compile_time_s, "compile_time_s"),
         "certificate_time_s": encode_number(result.certificate_time_s, "certificate_time_s"),
         "evaluations": int(result.evaluations),
-        "search": _plain(result.details, "search"),
+        "search": _plain({k: v for k, v in result.details.items() if k not in ("equilibria", "selection")},
+                         "search"),
         "certificate": None if result.certificate is None else certificate_to_dict(result.certificate),
+        "equilibria": _plain(result.details.get("equilibria"), "equilibria"),
+        "selection": _plain(result.details.get("selection"), "selection"),
         "settings": settings_to_dict(result.settings),
         "scenario": scenario_to_dict(scenario),
         "metrics": {

@@ -38,6 +38,7 @@ from staghunt.plots.common import (
     _title,
     uav_colour,
 )
+from staghunt.plots.equilibria import EquilibriaPanel, equilibria_figure
 from staghunt.plots.site import prisms_3d, prisms_top
 from staghunt.result import PlanResult
 
@@ -390,17 +391,30 @@ def _save_atomic(fig: Figure, target: Path, dpi: int) -> None:
         fig.savefig(fh, format="png", dpi=dpi)
 
 
-def save_figures(result: PlanResult, out_dir: Path | str, dpi: int = 130) -> list[Path]:
-    """Write ``paths_3d.png``, ``top_view.png``, ``altitude.png`` and ``convergence.png``.
+def plot_equilibria(result: PlanResult) -> Figure:
+    """The distinct equilibria a multi-start ``game`` run found, the selected one marked."""
+    eq = result.details["equilibria"]
+    selected = [e["J"] for e in eq if e["selected"]]
+    panel = EquilibriaPanel(_title(result, "Equilibria found"), np.array([e["J"] for e in eq]),
+                            np.array([e["dominated"] for e in eq]), np.array(selected), tuple(result.uav_names))
+    return equilibria_figure([panel])
 
-    ``out_dir`` is created if needed; each file is replaced atomically. Returns the four paths.
+
+def save_figures(result: PlanResult, out_dir: Path | str, dpi: int = 130) -> list[Path]:
+    """Write ``paths_3d.png``, ``top_view.png``, ``altitude.png`` and ``convergence.png``, and
+    ``equilibria.png`` for a multi-start ``game`` run.
+
+    ``out_dir`` is created if needed; each file is replaced atomically. Returns the paths.
     """
     if not isinstance(dpi, int) or dpi < 10:
         raise ValueError(f"dpi must be an integer >= 10, got {dpi!r}")
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     written: list[Path] = []
-    for filename, make in FIGURES.items():
+    makers = dict(FIGURES)
+    if result.details.get("equilibria"):
+        makers["equilibria.png"] = plot_equilibria
+    for filename, make in makers.items():
         fig = make(result)
         try:
             target = out / filename

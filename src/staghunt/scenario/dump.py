@@ -109,6 +109,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             "c1": float(s.c1),
             "c2": float(s.c2),
             "velocity_fraction": float(s.velocity_fraction),
+            "starts": int(s.starts),
         },
         "origin": None if o is None else {
             "latitude": float(o.latitude), "longitude": float(o.longitude), "altitude": float(o.altitude)

@@ -44,6 +44,8 @@ class SolverSettings:
 
     ``damping`` multiplies the inertia ``c0`` after every iteration (the reference uses 0.98).
     ``velocity_fraction``: velocity limit per component as a fraction of its range (0.5).
+    ``starts``: the starts of the ``game`` method's equilibrium search (docs/model.md section
+    6.1; other methods ignore it).
     """
 
     particles: int = 2000
@@ -54,6 +56,7 @@ class SolverSettings:
     c1: float = 1.5
     c2: float = 1.5
     velocity_fraction: float = 0.5
+    starts: int = 3
 
     def with_(self, **changes: object) -> "SolverSettings":
         """A copy with the given fields replaced (``None`` values are ignored)."""
@@ -115,6 +118,7 @@ def check_settings(s: SolverSettings, what: str = "solver settings") -> None:
         (integer(s.particles, 1), "particles must be an integer >= 1"),
         (integer(s.iterations, 0), "iterations must be an integer >= 0"),
         (integer(s.waypoints, 1), "waypoints must be an integer >= 1"),
+        (integer(s.starts, 1), "starts must be an integer >= 1"),
         (all(real(v) and v >= 0 for v in (s.c0, s.c1, s.c2, s.damping)),
          "c0, c1, c2 and damping must be finite numbers >= 0"),
         (real(s.velocity_fraction) and 0 < s.velocity_fraction <= 1,

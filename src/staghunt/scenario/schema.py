@@ -271,6 +271,8 @@ class Solver(_Table):
     c1: NonNegative = SolverSettings.c1
     c2: NonNegative = SolverSettings.c2
     velocity_fraction: Annotated[float, Field(gt=0, le=1)] = SolverSettings.velocity_fraction
+    starts: Annotated[int, Field(ge=1, description="starts of the game method's equilibrium search")] = (
+        SolverSettings.starts)
 
 
 class Origin(_Table):

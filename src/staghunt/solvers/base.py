@@ -10,6 +10,7 @@ import numpy as np
 
 from staghunt.costs import Evaluator, evaluate
 from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.response import Certificate
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
 
@@ -37,7 +38,10 @@ class MethodRun:
     ``evaluator`` scores batches of given plans (contract of :func:`staghunt.costs.evaluate`),
     for methods that also search outside a swarm (``game``'s polish). ``certified``: if given,
     a method that can stop early (``game``) asks it whether an intermediate plan ``(N, K, 3)`` is
-    already a certified equilibrium and stops when it is (``None``: the usual stopping rule)."""
+    already a certified equilibrium and stops when it is (``None``: the usual stopping rule).
+    ``certify``: if given (the run is certified), the certificate of a plan ``(N, K, 3)``, made
+    with the run's certificate options and not counted in the budget (``game`` certifies each
+    start's equilibrium to select among them); ``None``: no certificates."""
 
     scenario: Scenario
     settings: SolverSettings
@@ -46,6 +50,7 @@ class MethodRun:
     runner: SwarmRunner = run_swarm
     evaluator: Evaluator = evaluate
     certified: Callable[[np.ndarray], bool] | None = None
+    certify: Callable[[np.ndarray], Certificate] | None = None
 
 
 Method = Callable[[MethodRun], SolverOutput]

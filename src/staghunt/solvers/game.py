@@ -43,8 +43,10 @@ import numpy as np
 from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
-from staghunt.solvers.problem import solo_problem
-from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES
+from staghunt.solvers.independent import solo_model
+from staghunt.solvers.problem import solo_problem, team_problem
+from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, Certificate
+from staghunt.solvers.selection import Candidate, select
 from staghunt.solvers.rigid import rigid_problem
 from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.swarm import Progress, SwarmRunner
@@ -78,6 +80,8 @@ POLISH_SHARE = 0.25
 POLISH_STEP = 1.0
 POLISH_MIN_STEP = 1e-3
 """Initial and final coordinate step (m) of the polish."""
+TEAM_POLISH_SHARE = 0.02
+"""Most of the budget one :func:`team_polish` may spend (it usually needs far less)."""
 
 
 class _Rows:
@@ -170,6 +174,38 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
         new = best.copy()
         new[n], J = (combined, Jcomb) if Jcomb < Jc[i] else (cands[i], float(Jc[i]))
         best = new
+    return best, spent
+
+
+def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
+                step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
+    """Pareto-improving pattern search that moves the whole team: each sweep evaluates the
+    ``6 K`` plans with one coordinate of one waypoint moved by ``+-step`` for *every* UAV (the
+    formation's shape is kept) and takes, among the feasible ones that Pareto-dominate the plan
+    (no UAV worse, one better, eq. (9a)), the one with the least summed cost; else ``step``
+    halves, down to ``min_step`` metres. A swarm in the spherical encoding leaves a formation
+    route metres from its local optimum; this finishes the descent without making any UAV
+    worse off. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the path
+    evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
+    N, K = plan.shape[0], plan.shape[1]
+    moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, 1, K, 3)
+    if max_evaluations < N * (6 * K + 1):
+        return plan, 0
+    current = evaluator(model, plan[None])
+    if current.total_violation[0] != 0:
+        return plan, N
+    best, J, spent = plan, current.total[0], N
+    while step >= min_step and spent + N * 6 * K <= max_evaluations:
+        cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
+        c = evaluator(model, cands)
+        spent += N * 6 * K
+        better = ((c.total_violation == 0) & np.all(c.total <= J, axis=1)
+                  & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
+        if not better.any():
+            step /= 2
+            continue
+        i = np.flatnonzero(better)[np.argmin(c.total[better].sum(axis=1))]
+        best, J = cands[i], c.total[i]
     return best, spent
 
 
@@ -288,27 +324,100 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     return RoundsOutcome(plan, J, int(spent), rounds, accepted, converged)
 
 
-@register("game", "stag-hunt game solved to an equilibrium: rigid seed, then best-response rounds (default)")
+START_KINDS = ("rigid", "independent", "weighted", "random")
+"""The starts of the search, in order; beyond these, :data:`MORE_STARTS` in turn."""
+MORE_STARTS = ("weighted", "rigid")
+"""Starts after the first four: a weighted start descends the team's cost from the best
+equilibrium found so far (an iterated local search), a rigid one draws another formation route."""
+
+
+def _start_plan(kind: str, model: CostModel, settings: SolverSettings, rng: np.random.Generator,
+                runner: SwarmRunner, progress: Progress | None,
+                best: np.ndarray | None = None) -> tuple[np.ndarray, int, np.ndarray | None]:
+    """The ``(N, K, 3)`` allocation a start begins from, the path evaluations it cost and the
+    seed swarm's per-UAV record ``(iterations + 1, N)`` (``None`` if it has none). Every kind
+    spends ``settings.particles * (settings.iterations + 1) * N`` evaluations but ``random``
+    (one draw, one evaluation per UAV):
+
+    - ``rigid``: the rigid-formation plan (:mod:`staghunt.solvers.rigid`): feasible, in formation;
+    - ``independent``: every UAV's own ``J_s`` optimum alone (the hares; may collide);
+    - ``weighted``: the team's summed cost, all paths jointly;
+    - ``random``: one uniform draw of every UAV's path in its spherical search space."""
+    K, vf, N = settings.waypoints, settings.velocity_fraction, model.n_uavs
+    if kind == "rigid":
+        out = runner(rigid_problem(model, K, vf), settings, rng, progress)
+        return np.array(out.best_waypoints), out.path_evaluations, out.record_history
+    if kind == "independent":
+        plan = np.empty((N, K, 3))
+        spent = 0
+        for n in range(N):
+            out = runner(team_problem(solo_model(model, n), K, vf), settings, rng, None)
+            plan[n] = out.best_waypoints[0]
+            spent += out.path_evaluations
+        return plan, spent, None
+    if kind == "weighted":
+        problem = team_problem(model, K, vf, "sum")
+        warm = None
+        if best is not None:  # descend the team's sum from the best equilibrium so far (and near it)
+            enc = encode(best[None], problem.starts, problem.space)  # (1, N, K, 3)
+            lo, hi = problem.space.lower[None, :, None, :], problem.space.upper[None, :, None, :]
+            local = int(LOCAL_SHARE * settings.particles)
+            noise = rng.normal(0.0, LOCAL_SPREAD, size=(local, *enc.shape[1:])) * (hi - lo)
+            warm = np.concatenate([enc, np.clip(enc + noise, lo, hi)])[: settings.particles]
+        out = runner(problem, settings, rng, None, warm)
+        return np.array(out.best_waypoints), out.path_evaluations, out.record_history
+    problem = team_problem(model, K, vf)
+    return problem.team_waypoints(problem.space.sample(rng, 1, K))[0], N, None
+
+
+def _start_kind(s: int) -> str:
+    return START_KINDS[s] if s < len(START_KINDS) else MORE_STARTS[(s - len(START_KINDS)) % len(MORE_STARTS)]
+
+
+def _summary(c: Candidate) -> dict[str, Any]:
+    """A candidate's entry in the run's details: its start, ``J``, feasibility and certificate."""
+    cert = c.certificate
+    return {
+        "start": c.start,
+        "J": [float(x) for x in c.J],
+        "feasible": bool(c.violation == 0),
+        "evaluations": int(c.evaluations),
+        "certificate": None if cert is None else {
+            "status": cert.status,
+            "epsilon": float(cert.epsilon),
+            "max_relative_gap": float(cert.max_relative_gap),
+            "relative_gaps": [float(u.relative) for u in cert.uavs],
+            "particles": int(cert.particles),
+            "iterations": int(cert.iterations),
+        },
+    }
+
+
+@register("game", "stag-hunt game solved to an equilibrium: best-response rounds from several starts, "
+          "payoff-dominant selection (default)")
 def solve_game(run: MethodRun) -> SolverOutput:
+    """Best-response rounds from ``settings.starts`` starts (:data:`START_KINDS` in order), each
+    with an equal share of the budget left; the best equilibrium is selected
+    (:mod:`staghunt.solvers.selection`).
+
+    With one start this is the single-start method (the rigid seed, then rounds until
+    convergence or the budget). With several (docs/model.md section 6.1), each start is first
+    team-polished (:func:`team_polish`) and, if already certified, a candidate of its own; its
+    rounds then stop as soon as their plan is a certified equilibrium (``run.certify``; without
+    certificates, on the rounds' own rule), so the budget a start does not need goes to the
+    next ones; the selected plan is team-polished at the end, and the selection made again. What
+    a search with several starts leaves unspent is left (``unspent_evaluations``): the time
+    saved is the point."""
     scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
     runner, evaluator = run.runner, run.evaluator
     model = CostModel.from_scenario(scenario)
-    N, K, P, I = model.n_uavs, settings.waypoints, settings.particles, settings.iterations
+    N, P, I, S = model.n_uavs, settings.particles, settings.iterations, settings.starts
     budget = P * (I + 1) * N
     history = np.full((I + 1, N), np.nan)
     unit = P * N  # evaluations per row of history
-
-    # 1. Seed: the rigid formation.
-    seed_iters = max(0, int(SEED_SHARE * (I + 1)) - 1)
-    seed_settings = settings.with_(iterations=seed_iters)
-    seed = runner(rigid_problem(model, K, settings.velocity_fraction), seed_settings, rng,
-                  None if progress is None else _Rows(progress, I))
-    spent = seed.path_evaluations
-    history[: seed_iters + 1] = seed.record_history
-    plan = np.array(seed.best_waypoints)
-
-    # 2.-4. Best-response rounds.
-    state = {"row": seed_iters + 1}
+    rigid_iters = max(0, int(SEED_SHARE * (I + 1)) - 1)
+    seed_settings = settings.with_(iterations=max(0, int(SEED_SHARE * (I + 1) / S) - 1))
+    state = {"row": 0}
 
     def record(spent_now: int, J_now: np.ndarray) -> None:
         last = min(I + 1, spent_now // unit)
@@ -317,20 +426,91 @@ def solve_game(run: MethodRun) -> SolverOutput:
         if progress is not None:
             progress(min(I, max(0, last - 1)), I, J_now.copy())
 
-    out = best_response_rounds(model, plan, settings, rng, runner, evaluator, budget, spent, record,
-                               certified=run.certified)
-    plan, J, spent, row = out.plan, out.costs, out.evaluations, state["row"]
+    def certificate(plan: np.ndarray) -> Certificate | None:
+        return run.certify(plan) if run.certify is not None else None
+
+    # A single start keeps its stopping rule (the run's); several stop at their first certified plan.
+    explore_stop = run.certified if S == 1 else (
+        (lambda wp: certificate(wp).is_equilibrium) if run.certify is not None else None)
+    spent = 0
+    candidates: list[Candidate] = []
+    starts: list[dict[str, Any]] = []
+    for s in range(S):
+        kind = _start_kind(s)
+        cap = spent + (budget - spent) // (S - s)
+        before = spent
+        seed_progress = _Rows(progress, I) if progress is not None and s == 0 else None
+        best = candidates[select(candidates, EPSILON).chosen].plan if candidates else None
+        # The rigid seed keeps the single-start method's share of the whole budget: the team's
+        # payoff-dominant equilibria tend to lie on the best formation routes it searches.
+        kind_settings = settings.with_(iterations=rigid_iters) if kind == "rigid" else seed_settings
+        start, used, seed_history = _start_plan(kind, model, kind_settings, rng, runner, seed_progress, best)
+        spent += used
+        if s == 0:
+            seed_evaluations = int(used)
+        if s == 0 and seed_history is not None:
+            history[: rigid_iters + 1] = seed_history
+            state["row"] = rigid_iters + 1
+        else:
+            record(spent, evaluate(model, start[None]).total[0])
+        if S > 1:
+            start, used = team_polish(model, start, min(int(TEAM_POLISH_SHARE * budget), cap - spent), evaluator)
+            spent += used
+        if S > 1 and run.certify is not None:
+            # The start itself may already be an equilibrium (the rigid plan often is): a candidate
+            # of its own, whatever equilibrium the rounds then reach from it.
+            c = evaluate(model, start[None])
+            if c.total_violation[0] == 0 and certificate(start).is_equilibrium:
+                candidates.append(Candidate(kind + " (start)", start, c.total[0], 0.0, certificate(start),
+                                            spent - before))
+        out = best_response_rounds(model, start, settings, rng, runner, evaluator, cap, spent, record,
+                                   repair=kind != "rigid", certified=explore_stop)
+        spent = out.evaluations
+        c = evaluate(model, out.plan[None])
+        cert = certificate(out.plan) if c.total_violation[0] == 0 else None
+        candidates.append(Candidate(kind, out.plan, c.total[0], float(c.total_violation[0]), cert, spent - before))
+        starts.append({"start": kind, "rounds": out.rounds, "accepted_replies": out.accepted,
+                       "converged": out.converged, "evaluations": int(spent - before)})
+
+    chosen = candidates[select(candidates, EPSILON).chosen]
+    if S > 1:
+        # Finish the selected plan with a team polish (no UAV worse off); if the polished plan is
+        # still a certified equilibrium, it is one more candidate (it then dominates the other).
+        before = spent
+        polished, used = team_polish(model, chosen.plan, min(int(TEAM_POLISH_SHARE * budget), budget - spent),
+                                     evaluator)
+        spent += used
+        if polished is not chosen.plan:
+            c = evaluate(model, polished[None])
+            candidates.append(Candidate(chosen.start + " (polished)", polished, c.total[0],
+                                        float(c.total_violation[0]), certificate(polished), spent - before))
+        starts.append({"start": "polish", "rounds": [], "accepted_replies": 0, "converged": True,
+                       "evaluations": int(spent - before)})
+    selection = select(candidates, EPSILON)
+    plan, J = candidates[selection.chosen].plan, candidates[selection.chosen].J
+    row = state["row"]
     history[row:] = J
     if progress is not None:
         progress(I, I, J.copy())
-    details = {
+    first = starts[0]
+    details: dict[str, Any] = {
         "seed": "rigid",
-        "seed_evaluations": int(seed.path_evaluations),
-        "rounds": out.rounds,
-        "accepted_replies": out.accepted,
-        "converged": out.converged,
+        "seed_evaluations": seed_evaluations,
+        "rounds": first["rounds"],
+        "accepted_replies": first["accepted_replies"],
+        "converged": first["converged"],
         "unspent_evaluations": int(budget - spent),
     }
+    if S > 1:
+        details["starts"] = starts
+        details["equilibria"] = [
+            {**_summary(candidates[i]), "dominated": d, "selected": i == selection.chosen,
+             "same": [j for j, home in enumerate(selection.same_as) if home == i and j != i]}
+            for i, d in zip(selection.equilibria, selection.dominated)]
+        details["candidates"] = [_summary(c) for c in candidates]
+        details["selection"] = {"payoff_dominant": selection.payoff_dominant, "rule": selection.rule,
+                                "found": len(selection.equilibria), "starts": S,
+                                "selected_start": candidates[selection.chosen].start}
     return SolverOutput(
         waypoints=plan,
         history=history,
