@@ -90,7 +90,9 @@ def plan(
     available memory raises :class:`staghunt.budget.MemoryBudgetError` (a ``ValueError``) before
     anything is allocated (:func:`staghunt.budget.estimate_plan`). ``certify_progress(uav, n_uavs,
     iteration, iterations)`` follows its searches. A one-time compilation of the engine is timed
-    apart from the search (``compile_time_s``).
+    apart from the search (``compile_time_s``). With ``certify``, the default method with several
+    starts (``settings.starts``) certifies every start's plan to select among the equilibria it
+    found (docs/model.md section 6.1); ``certificate_time_s`` counts all those certificates.
 
     ``stop``: ``"budget"`` (default): each method's own stopping rule. ``"certified"`` (with
     ``certify``; for methods that can stop early, ``game``): the search also stops as soon as
