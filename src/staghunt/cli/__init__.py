@@ -106,7 +106,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:
         raise
     except (ValueError, OSError, OverflowError) as exc:  # ScenarioError and MemoryBudgetError are ValueErrors
-        return error(one_line(exc))
+        return error(one_line(exc, args.command))
     except RecursionError:
         return error("input nested too deeply")
     except MemoryError:

@@ -29,6 +29,7 @@ import numpy as np
 
 from staghunt.costs import CostModel
 from staghunt.costs.model import full_paths, to_absolute
+from staghunt.errors import FieldError
 from staghunt.flight.mission import MissionFlight, fly_mission, read_trajectories_csv
 from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
 from staghunt.geo.geoid import GEOID_MODEL, geoid_height, geoid_source
@@ -41,8 +42,11 @@ FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories
 (Litchi CSV): one file per UAV; ``kml``, ``geojson``, ``trajectories`` (CSV): one per team."""
 
 
-class ExportRefused(ValueError):
+class ExportRefused(FieldError):
     """The plan is infeasible or unsafe in time and ``force`` was not given (exit 3)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, "force")
 
 
 @dataclass(frozen=True)
@@ -118,13 +122,13 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     scenario, _, _ = plan_from_result_data(data, str(result_path))
     origin = origin if origin is not None else scenario.origin
     if origin is None:
-        raise ValueError(f"{result_path}: the scenario has no [origin]; give --origin LAT,LON,ALT")
-    check_origin(origin, "--origin" if origin is not scenario.origin else "scenario origin")
+        raise FieldError(f"{result_path}: the scenario has no [origin]; give an origin (latitude, longitude, altitude)", "origin")
+    check_origin(origin, "origin" if origin is not scenario.origin else "scenario origin")
     out = Path(out_dir)
     if not str(out_dir).strip():
-        raise ValueError("--out must not be empty")
+        raise FieldError("the output directory must not be empty", "out")
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} exists and is not a directory")
+        raise FieldError(f"the output directory {str(out)!r} exists and is not a directory", "out")
     # The stored status is not trusted: the paths are checked against the embedded scenario
     # with evaluate's own check (starts and goals the scenario's, the site box, obstacles,
     # ground, ceiling, separation), and the absolute paths rebuilt from it.
@@ -158,7 +162,7 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
             note = "UNSAFE: " + problems[0]
             files = _build(scenario, model, traj, origin, chosen, names, note[:200], frame)
     if problems:
-        files["MISSION_UNSAFE.txt"] = "This mission was exported with --force although:\n" + \
+        files["MISSION_UNSAFE.txt"] = "This mission was exported although it was refused (forced):\n" + \
             "\n".join(f"- {p}" for p in problems) + "\nDo not fly it as it is.\n"
     summary = _summary(data, origin, traj, safety, problems, names, frame)
     if flight is not None:
@@ -204,7 +208,7 @@ def _check_duration(paths: np.ndarray, vehicle: Any, source: str) -> None:
 def _refused(result_path: str, problems: list[str]) -> ExportRefused:
     return ExportRefused(f"{result_path}: not exported: {problems[0]}"
                          + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
-                         + "; --force writes the files anyway, marked unsafe")
+                         + "; a forced export writes the files anyway, marked unsafe")
 
 
 def _build(scenario: Any, model: CostModel, traj: Trajectories, origin: GeoOrigin,
