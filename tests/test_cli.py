@@ -429,3 +429,11 @@ def test_the_command_line_adds_the_flags_of_a_refused_field():
     refused = MemoryBudgetError("the certificate would need 9 TB", "a smaller certificate budget", "certify")
     assert worded(refused, "certify") == "the certificate would need 9 TB; use a smaller --particles or --iterations"
     assert worded(refused, "plan") == str(refused)
+
+
+def test_the_epilog_lists_every_exit_code():
+    from staghunt.cli import build_parser
+
+    epilog = build_parser().epilog
+    for code in ("0", "1", "2", "3", "130", "141"):
+        assert f" {code} " in f" {epilog} ", code
