@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import stat
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -167,15 +169,18 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     summary = _summary(data, origin, traj, safety, problems, names, frame)
     if flight is not None:
         summary["flight"] = _flight_summary(flight, names)
-    files["mission.json"] = json.dumps(summary, indent=1) + "\n"
 
     def figures(stage: Path) -> list[Path]:
         from staghunt.plots.mission import save_mission_figures
 
         return list(save_mission_figures(traj, scenario, stage))
 
-    try:  # the whole set or nothing: staged beside the target, then moved into place
-        written = write_file_set(out, files, figures if plots else None)
+    def manifest(names: list[str]) -> tuple[str, str]:
+        summary["files"] = sorted([*names, MANIFEST])  # what a later export into out replaces
+        return MANIFEST, json.dumps(summary, indent=1) + "\n"
+
+    try:  # the whole set or nothing, replacing the previous export's set: staged, then moved into place
+        written = write_file_set(out, files, figures if plots else None, previous_set(out), manifest)
     except OSError as exc:
         raise ValueError(f"cannot write to {str(out)!r}: {exc.strerror or exc}") from None
     return ExportReport(files=tuple(written), origin=origin, duration=traj.duration, stretch=traj.stretch,
@@ -184,6 +189,29 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
                         safety=safety, bound=traj.bound, merged=traj.merged, flight=flight,
                         warnings=tuple(problems), seconds=time.perf_counter() - t0,
                         altitude_frame=frame, geoid_height=float(summary["origin"]["geoid_height_m"]))
+
+
+MANIFEST = "mission.json"
+"""The export's summary, written last; its ``files`` list the set (itself included)."""
+
+
+def previous_set(out: Path) -> list[str]:
+    """The files a previous export wrote into ``out``, as its :data:`MANIFEST` lists them (none
+    if there is none or it cannot be read: only what an export listed is ever replaced)."""
+    try:
+        if not stat.S_ISREG(os.stat(out / MANIFEST).st_mode):  # never open a FIFO or a device
+            return []
+        with open(out / MANIFEST, encoding="utf-8") as fh:
+            data = json.loads(fh.read(MAX_MANIFEST_BYTES))
+    except (OSError, ValueError, RecursionError):
+        return []
+    names = data.get("files") if isinstance(data, dict) else None
+    if not isinstance(names, list) or data.get("format") != "staghunt-mission/1":
+        return []
+    return [n for n in names if isinstance(n, str)]
+
+
+MAX_MANIFEST_BYTES = 16 * 2**20
 
 
 MAX_MISSION_SECONDS = 3600.0
