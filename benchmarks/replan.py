@@ -168,12 +168,14 @@ def _with_popup(job: dict[str, Any], engine: Any) -> tuple[np.ndarray, Any, int,
     from dataclasses import replace
 
     from staghunt.flight import FlyConfig
+    from staghunt.api import check_plan
     from staghunt.flight.loop import _source, plan_around
     from staghunt.world.dynamic import Dynamics
 
     scenario, wp, settings = _source(job["result"])
     known = job["known"]
-    wp2, ref, _ = plan_around(replace(scenario, dynamics=known), known, wp, 1, settings, FlyConfig(), engine)
+    request = check_plan(replace(scenario, dynamics=known), "game", 1, settings, engine)
+    wp2, ref, _ = plan_around(request, known, wp, FlyConfig())
     rng = np.random.default_rng([2 if job["kind"].startswith("scenario2") else 3, job["episode"]])
     radius, name = ((2.0, 6.0), "pop-up") if job["kind"].startswith("scenario2") else ((3.0, 6.0), "pop-up load")
     popup, n, lead = _popup(scenario, ref, rng, radius, name)
@@ -263,6 +265,7 @@ def solve_only(job: dict[str, Any]) -> dict[str, Any]:
 
     from staghunt.engine import get_engine
     from staghunt.flight import FlyConfig
+    from staghunt.api import check_plan
     from staghunt.flight.loop import _source, plan_around
     from staghunt.flight.replan import Replanner
 
@@ -270,7 +273,7 @@ def solve_only(job: dict[str, Any]) -> dict[str, Any]:
     wp, dyn, n, lead = _with_popup(job, engine)
     scenario, _, settings = _source(job["result"])
     scenario = replace(scenario, dynamics=dyn)
-    _, ref, _ = plan_around(scenario, dyn, wp, 1, settings, FlyConfig(), engine)
+    _, ref, _ = plan_around(check_plan(scenario, "game", 1, settings, engine), dyn, wp, FlyConfig())
     popup = dyn.events[0]
     config = FlyConfig(certify_rounds=job.get("certify_rounds", FlyConfig.certify_rounds))
     planner = Replanner(scenario, dyn, config, engine, np.random.default_rng(job["episode"]))

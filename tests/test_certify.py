@@ -206,3 +206,22 @@ def test_cli_certify_bad_input(argv, result_file, tmp_path, capsys):
     assert run_cli(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("staghunt: error: ") and err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_check_certify_returns_a_checked_request_run_as_is(alone):
+    from staghunt.solvers.base import RequestError
+    from staghunt.solvers.response import CertifyOptions, CertifyRequest, check_certify
+    from staghunt.solvers.response import certify_plan as run_request
+
+    request = check_certify(alone, _straight(50.0)[None], CertifyOptions(particles=5, iterations=2), seed=3)
+    assert isinstance(request, CertifyRequest) and not request.waypoints.flags.writeable
+    assert (request.settings.particles, request.settings.iterations, request.settings.waypoints) == (5, 2, K)
+    cert = run_request(request)
+    assert (cert.particles, cert.iterations, cert.seed) == (5, 2, 3)
+    for options, settings, field in ((CertifyOptions(particles=0), None, "certify"),
+                                     (CertifyOptions(), alone.solver.with_(c1=0.0, c2=0.0), "certify"),
+                                     (CertifyOptions(), alone.solver.with_(velocity_fraction=0.0), "settings")):
+        with pytest.raises(RequestError) as info:
+            check_certify(alone, _straight(50.0)[None], options, settings=settings)
+        assert info.value.field == field
+        assert "--" not in str(info.value)  # the library never names flags

@@ -416,3 +416,24 @@ def test_python_m_staghunt(tmp_path):
     assert "Traceback" not in proc.stderr
     data = _strict_loads((out / "result.json").read_text(encoding="utf-8"))
     assert data["status"] == ("feasible" if proc.returncode == 0 else "infeasible")
+
+
+def test_the_command_line_adds_the_flags_of_a_refused_field():
+    from staghunt.budget import MemoryBudgetError
+    from staghunt.cli.common import worded
+    from staghunt.errors import FieldError
+
+    assert worded(FieldError("the scenario has no [origin]", "origin"), "export").endswith("(--origin LAT,LON,ALT)")
+    assert worded(FieldError("seeds: the range '3-1' runs backwards", "seeds"), "compare").endswith("(--seeds)")
+    assert worded(ValueError("plain")) == "plain"
+    refused = MemoryBudgetError("the certificate would need 9 TB", "a smaller certificate budget", "certify")
+    assert worded(refused, "certify") == "the certificate would need 9 TB; use a smaller --particles or --iterations"
+    assert worded(refused, "plan") == str(refused)
+
+
+def test_the_epilog_lists_every_exit_code():
+    from staghunt.cli import build_parser
+
+    epilog = build_parser().epilog
+    for code in ("0", "1", "2", "3", "130", "141"):
+        assert f" {code} " in f" {epilog} ", code

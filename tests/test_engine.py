@@ -377,3 +377,49 @@ def test_deviation_costs_match_the_full_evaluation(n_uavs, radii):
         assert np.array_equal(np.isinf(got), np.isinf(want))
         assert np.array_equal(got, want)
         assert np.isinf(got).any() and np.isfinite(got).any()
+
+
+def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
+    """The arguments bound from the kernels' parameter names (engine.arrays.kernel_args) are the
+    very objects, in the order, that the hand-written calls they replaced passed."""
+    from staghunt.engine.arrays import kernel_args, model_arrays, no_swarm
+    from staghunt.engine.loop import ITERATE_PER_CALL, _RunState
+    from staghunt.engine.numba_engine import TEAM_PASS_PER_CALL, UAV_PASS_PER_CALL, _Pass
+    from staghunt.engine.scratch import Scratch
+
+    model = CostModel.from_scenario(load_scenario("scenario2"))
+    N, K = model.n_uavs, 4
+    run = _Pass(model_arrays(model), no_swarm(N, K), N, K, 0, 1, 0, wp=np.zeros((8, N, K, 3)))
+    run.key = np.uint64(99)  # the run's own key must not stand in for iterate's
+    w, ma, sa = Scratch(N, K, 0, run.B), run.ma, run.sa
+    uav = (run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets, sa.fixed, ma.par, run.wp,
+           ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
+           w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio)
+    team = (w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, ma.par, w.form, w.hit,
+            w.rx, w.ry, w.rz, w.tmp, w.acc, w.acc2, w.flag, w.better, w.terms, w.vio, w.res, run.X, run.PB,
+            run.pcost, run.pviol, run.cost, run.viol, run.J, sa.players, run.terms_out, run.vio_out, run.res_out)
+    extra = _RunState(np.uint64(1), np.zeros(3), np.zeros((1, 1)), np.zeros((2, 1)), np.zeros((2, N)), np.zeros(2))
+    loop = (extra.key, extra.state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets,
+            sa.fixed, ma.par, ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, ma.weights, ma.heads, ma.tails, ma.mu,
+            ma.ref_diff, sa.players, run.pcost, run.pviol, run.cost, run.viol, run.J, extra.gcost, extra.history,
+            extra.rhistory, extra.hviol, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1,
+            w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit, w.rx, w.ry,
+            w.rz, w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out)
+    for kernel, sources, per_call, expected in (
+            (kn.uav_pass, (run, ma, sa, w), UAV_PASS_PER_CALL, uav),
+            (kn.team_pass, (run, ma, sa, w), TEAM_PASS_PER_CALL, team),
+            (kn.iterate, (extra, run, ma, sa, w), ITERATE_PER_CALL, loop)):
+        bound = kernel_args(kernel, *sources, per_call=per_call)
+        assert len(bound) == len(expected) and all(a is b for a, b in zip(bound, expected)), kernel.__name__
+    with pytest.raises(TypeError, match="does not start with"):
+        kernel_args(kn.team_pass, run, ma, sa, w, per_call=("q0",))
+
+
+def test_named_columns_fill_the_kernel_rows():
+    from staghunt.engine.arrays import model_arrays
+
+    model = CostModel.from_scenario(load_scenario("scenario2"))
+    uav = model_arrays(model).uav
+    assert uav.shape[1] == kn.U_COLUMNS
+    np.testing.assert_array_equal(uav[:, kn.U_RADIUS], model.radius)
+    np.testing.assert_array_equal(uav[:, kn.U_GOAL:kn.U_GOAL + 3], model.goals)

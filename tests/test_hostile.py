@@ -929,6 +929,30 @@ def test_export_replaces_the_set_and_keeps_the_users_files(capsys, result_file, 
     assert after["uav1.plan"] != before["uav1.plan"] and b'"altitude_amsl_m": 500' in after["mission.json"]
 
 
+def test_export_removes_the_previous_sets_files_it_does_not_write(capsys, result_file, plan_a_exported):
+    """Plan B with fewer formats over plan A (as if A had been forced: a MISSION_UNSAFE.txt in its
+    list): A's files that B does not write go, with the move; what A's mission.json does not
+    list (the user's notes), a listed name that is now a directory, and names that leave the
+    directory stay untouched."""
+    out = plan_a_exported
+    manifest = json.loads((out / "mission.json").read_text())
+    assert "uav1.plan" in manifest["files"] and "mission.json" in manifest["files"]
+    (out / "MISSION_UNSAFE.txt").write_text("A was forced\n")
+    (out / "kept_dir").mkdir()
+    (out.parent / "outside.txt").write_text("not the set's\n")
+    manifest["files"] += ["MISSION_UNSAFE.txt", "kept_dir", "../outside.txt", ".hidden"]
+    (out / "mission.json").write_text(json.dumps(manifest))
+    (out / ".hidden").write_text("x")
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots", "--formats", "plan")
+    assert code == 0, err
+    names = sorted(p.name for p in out.iterdir())
+    n = len(json.loads((out / "mission.json").read_text())["max_speed_m_s"])
+    assert names == sorted([".hidden", "kept_dir", "mission.json", "notes.txt"] + [f"uav{i}.plan" for i in range(1, n + 1)])
+    assert (out.parent / "outside.txt").exists() and (out / "notes.txt").read_text() == "mine\n"
+    assert sorted(json.loads((out / "mission.json").read_text())["files"]) == sorted(
+        ["mission.json"] + [f"uav{i}.plan" for i in range(1, n + 1)])
+
+
 # ------------------------------------------------------------------------------------------------
 # GeoTIFF and GeoJSON ground and obstacles: checked like TOML values (issue 19)
 # ------------------------------------------------------------------------------------------------

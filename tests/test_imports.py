@@ -1,7 +1,7 @@
-"""The import graph between the packages of ``staghunt``: no cycle, top-level and deferred
-(function-level) imports alike. The command line (``cli``, ``__main__``) and the package's own
-``__init__`` (the public facade) sit on top and are left out: they may import anything, and
-nothing below imports them."""
+"""The import graph between the packages of ``staghunt``: no cycle, and every arrow points down
+the layers of :data:`LAYERS`, top-level and deferred (function-level) imports alike. The command
+line (``cli``, ``__main__``) and the package's own ``__init__`` (the public facade) sit on top:
+they may import anything, and nothing below imports them."""
 
 from __future__ import annotations
 
@@ -13,6 +13,25 @@ import staghunt
 
 ROOT = Path(staghunt.__file__).parent
 TOP = {"cli", "__main__", "(facade)"}
+
+LAYERS: list[set[str]] = [
+    {"_version", "errors", "inputs", "encoding", "task", "world"},  # foundation: imports nothing of ours
+    {"scenario", "geo"},  # the problem as given; the site frame
+    {"costs"},
+    {"checks", "solvers"},
+    {"engine", "trajectory"},  # engines run the solvers' problems; timing of checked paths
+    {"budget", "result"},
+    {"io"},  # files in and out
+    {"api"},  # check_plan / plan
+    {"analysis"},  # certify, compare, the paper's figures
+    {"flight"},  # closed loop: plans through api, reads results through analysis
+    {"plots"},
+    {"missions"},  # export: flies missions in simulation, draws them
+    {"study"},  # (another developer's package, when it lands: above analysis)
+    TOP,
+]
+"""The packages from the bottom up: a package may import its own modules and packages of lower
+layers only (so, within a layer, none imports another)."""
 
 
 def _package(module: str) -> str:
@@ -83,6 +102,34 @@ def test_no_cycle_between_packages():
 def test_nothing_below_imports_the_command_line_or_the_facade():
     offenders = {a: sorted(bs & TOP) for a, bs in package_graph().items() if a not in TOP and bs & TOP}
     assert offenders == {}
+
+
+def layer_of(package: str) -> int:
+    for i, layer in enumerate(LAYERS):
+        if package in layer:
+            return i
+    raise KeyError(package)
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """``"a -> b"`` for every package ``a`` importing ``b`` of its own layer or one above."""
+    return [f"{a} -> {b}" for a, bs in sorted(graph.items()) for b in sorted(bs)
+            if a not in TOP and layer_of(b) >= layer_of(a)]
+
+
+def test_every_package_has_a_layer():
+    packages = {p.name for p in ROOT.iterdir() if (p / "__init__.py").exists()}
+    packages |= {p.stem for p in ROOT.glob("*.py")} - {"__init__"}
+    placed = set().union(*LAYERS)
+    assert sorted(packages - placed) == []
+
+
+def test_every_import_points_down_the_layers():
+    assert upward_imports(package_graph()) == []
+
+
+def test_the_layer_check_finds_upward_imports():
+    assert upward_imports({"costs": {"scenario", "api"}, "checks": {"solvers"}}) == ["checks -> solvers", "costs -> api"]
 
 
 def test_the_cycle_finder_finds_cycles():

@@ -16,18 +16,18 @@ from staghunt.costs import CostModel, evaluate, full_paths, to_absolute
 from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
-from staghunt.scenario.model import check_settings
 from staghunt.solvers import METHODS
-from staghunt.solvers.base import MethodRun
-from staghunt.solvers.response import Certificate, CertifyOptions, certify_plan
+from staghunt.solvers.base import MethodRun, RequestError, check_seed
+from staghunt.solvers.response import Certificate, CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.solvers.swarm import Progress
 
 
 @dataclass(frozen=True, eq=False)
 class PlanRequest:
     """A run that :func:`check_plan` has checked: the scenario, method, seed, solver settings,
-    the resolved engine, the certificate's options (``None``: none), the stopping rule and the
-    memory estimate. :func:`plan` runs it without checking anything again."""
+    the resolved engine, the certificate's options (``None``: none) and its searches' settings,
+    the stopping rule and the memory estimate. :func:`plan` runs it without checking anything
+    again."""
 
     scenario: Scenario
     method: str
@@ -37,25 +37,22 @@ class PlanRequest:
     certify: CertifyOptions | None
     stop: str
     estimate: MemoryEstimate
+    certify_settings: SolverSettings | None = None
 
     def with_seed(self, seed: int) -> "PlanRequest":
         """The same run with another seed (the only field checked again)."""
-        _check_seed(seed)
-        return replace(self, seed=int(seed))
+        return replace(self, seed=check_seed(seed))
+
+    def with_scenario(self, scenario: Scenario) -> "PlanRequest":
+        """The same run on ``scenario``, the same team and budget in a changed world (the
+        re-plans of a flight: the checked settings still hold; the memory estimate is the
+        original run's)."""
+        return replace(self, scenario=scenario)
 
 
-class PlanRequestError(ValueError):
+class PlanRequestError(RequestError):
     """A run :func:`check_plan` refuses; ``field`` names the argument at fault (``method``,
     ``seed``, ``settings``, ``certify``, ``stop``) so that a caller can word it its own way."""
-
-    def __init__(self, message: str, field: str) -> None:
-        super().__init__(message)
-        self.field = field
-
-
-def _check_seed(seed: Any) -> None:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise PlanRequestError(f"seed must be an integer >= 0, got {seed!r}", "seed")
 
 
 def plan(
@@ -120,7 +117,7 @@ def plan(
             if np.array_equal(seen, wp):
                 return cert
         t = time.perf_counter()
-        cert = _certificate(scenario, wp, certify, seed, settings, certify_progress, resolved)
+        cert = _certificate(request, wp, certify_progress)
         checks.append((np.array(wp, copy=True), cert, time.perf_counter() - t))
         return cert
 
@@ -144,16 +141,16 @@ def plan(
     return replace(result, certificate=cert, certificate_time_s=sum(c[2] for c in checks))
 
 
-def _certificate(scenario: Scenario, waypoints: np.ndarray, certify: CertifyOptions, seed: int,
-                 settings: SolverSettings, progress: Callable[[int, int, int, int], None] | None,
-                 engine: Engine) -> Certificate:
-    """The certificate of ``waypoints``, run by ``engine``: with the compiled engine on several
-    cores, the UAVs' searches run side by side, one thread each (the same certificate: each
-    search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
-    runner, workers = side_by_side(engine)
-    return certify_plan(scenario, waypoints, particles=certify.particles, iterations=certify.iterations,
-                        seed=seed, epsilon=certify.epsilon, settings=settings, progress=progress,
-                        runner=runner, workers=workers)
+def _certificate(request: PlanRequest, waypoints: np.ndarray,
+                 progress: Callable[[int, int, int, int], None] | None) -> Certificate:
+    """The certificate of ``waypoints``, run by the request's engine: with the compiled engine on
+    several cores, the UAVs' searches run side by side, one thread each (the same certificate:
+    each search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
+    assert request.certify is not None and request.certify_settings is not None
+    runner, workers = side_by_side(request.engine)
+    checked = CertifyRequest.of_checked(request.scenario, waypoints, request.certify_settings,
+                                        request.certify, request.seed)
+    return certify_plan(checked, progress=progress, runner=runner, workers=workers)
 
 
 def check_plan(
@@ -177,18 +174,11 @@ def check_plan(
     :class:`~staghunt.budget.MemoryBudgetError`), ``ValueError`` subclasses, with one line."""
     if method not in METHODS:
         raise PlanRequestError(f"unknown method {method!r}; choose one of {', '.join(sorted(METHODS))}", "method")
-    _check_seed(seed)
     try:
-        check_settings(settings)
-        if certify is not None:
-            certify.check()
-    except ValueError as exc:
-        raise PlanRequestError(str(exc), "settings" if certify is None else "certify") from None
-    if certify is not None and settings.c1 == 0 and settings.c2 == 0 and certify.iterations > 0:
-        # Refused by the certificate itself, but only after the search: check it now.
-        raise PlanRequestError("solver settings: c1 and c2 are both 0, so the certificate's search cannot "
-                               "move towards any better path; give c1 or c2 > 0, or skip the certificate",
-                               "certify")
+        seed = check_seed(seed)
+        certify_settings = check_search(settings, certify)
+    except RequestError as exc:
+        raise PlanRequestError(str(exc), exc.field) from None
     if stop not in ("budget", "certified"):
         raise PlanRequestError(f"stop must be 'budget' or 'certified', not {stop!r}", "stop")
     if stop == "certified" and certify is None:
@@ -197,7 +187,7 @@ def check_plan(
     estimate = estimate_plan(scenario, settings, method, resolved, threads, certify)
     if memory:  # before anything is allocated: a run that cannot fit in memory is refused
         check_memory(estimate, warn=warn)
-    return PlanRequest(scenario, method, int(seed), settings, resolved, certify, stop, estimate)
+    return PlanRequest(scenario, method, seed, settings, resolved, certify, stop, estimate, certify_settings)
 
 
 def assemble(

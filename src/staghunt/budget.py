@@ -18,6 +18,8 @@ import os
 from dataclasses import dataclass, field
 from typing import Any, Callable
 
+from staghunt.errors import FieldError
+
 F8 = 8
 BASELINE_BYTES = 175 * 2**20
 """Resident memory of a ``staghunt plan`` process before its arrays with the compiled engine
@@ -36,8 +38,14 @@ REFUSE_FRACTION = 0.9
 logger = logging.getLogger("staghunt.budget")
 
 
-class MemoryBudgetError(ValueError):
-    """A run that cannot fit in memory (one line: needs, has, how to shrink)."""
+class MemoryBudgetError(FieldError):
+    """A run that cannot fit in memory (one line: ``need``, what it needs and what the machine
+    has; then ``shrink``, how to shrink it, in plain words; ``field``: the argument to shrink)."""
+
+    def __init__(self, need: str, shrink: str, field: str) -> None:
+        super().__init__(f"{need}; use {shrink}", field)
+        self.need = need
+        self.shrink = shrink
 
 
 def human(n: float) -> str:
@@ -216,8 +224,10 @@ def estimate_evaluate(n_uavs: int, n_obstacles: int, waypoints: int, population:
 
 
 def check_memory(estimate: MemoryEstimate, shrink: str = "fewer particles, iterations or waypoints",
-                 available: int | None = None, warn: Callable[[str], None] | None = None) -> MemoryEstimate:
-    """Raise :class:`MemoryBudgetError` if ``estimate`` cannot fit in the available memory;
+                 available: int | None = None, warn: Callable[[str], None] | None = None,
+                 field: str = "settings") -> MemoryEstimate:
+    """Raise :class:`MemoryBudgetError` (``shrink`` and ``field``: what to shrink, unless the
+    largest part is the threads' scratch or the history) if ``estimate`` cannot fit in the available memory;
     above :data:`WARN_FRACTION` of it, warn once through ``warn`` (default: a warning on the
     ``staghunt.budget`` logger)."""
     source = "given"
@@ -228,13 +238,12 @@ def check_memory(estimate: MemoryEstimate, shrink: str = "fewer particles, itera
     if estimate.total > REFUSE_FRACTION * available:
         biggest = max(estimate.parts.items(), key=lambda kv: kv[1], default=("", 0))[0]
         if "scratch" in biggest:
-            shrink = "fewer threads (--threads) or waypoints"
+            shrink, field = "fewer threads or waypoints", "threads"
         elif "history" in biggest:
-            shrink = "fewer iterations"
+            shrink, field = "fewer iterations", "iterations"
         raise MemoryBudgetError(
             f"the {estimate.what} would need {estimate.describe()}, but this machine has "
-            f"{human(available)} available ({source}); use {shrink}"
-        )
+            f"{human(available)} available ({source})", shrink, field)
     if estimate.total > WARN_FRACTION * available and _first_time(estimate):
         (warn or logger.warning)(
             f"staghunt: warning: the {estimate.what} needs {human(estimate.total)}, "

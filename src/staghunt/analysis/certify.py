@@ -11,15 +11,23 @@ from typing import Any, Callable
 
 import numpy as np
 
+from staghunt.budget import check_memory, estimate_certify
+from staghunt.checks import check_waypoints, outside_site
+from staghunt.costs import CostModel
 from staghunt.engine import Engine, get_engine
+from staghunt.errors import FieldError
 from staghunt.io.certificate import certificate_to_dict
+from staghunt.io.result_json import read_result
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.response import (
     DEFAULT_EPSILON,
     DEFAULT_ITERATIONS,
     DEFAULT_PARTICLES,
     Certificate,
+    CertifyOptions,
+    CertifyRequest,
     UAVGap,
+    check_certify,
 )
 from staghunt.solvers.response import (
     certify_plan as _certify_plan,
@@ -35,7 +43,9 @@ __all__ = [
     "certificate_to_dict",
     "certify_plan",
     "certify_result_file",
+    "check_certify_plan",
     "plan_from_result_data",
+    "run_certificate",
 ]
 
 
@@ -55,23 +65,39 @@ def certify_plan(
     """:func:`staghunt.solvers.response.certify_plan` with the searches run by ``engine`` (see
     :func:`staghunt.engine.get_engine`). Refuses (``ValueError``) waypoints that are not a finite
     ``(N, K, 3)`` array of moderate magnitude or that leave the site box, and a budget that
-    cannot fit in memory."""
-    from staghunt.budget import check_memory, estimate_certify
-    from staghunt.checks import check_waypoints, outside_site
-    from staghunt.costs import CostModel
+    cannot fit in memory (:func:`check_certify_plan`)."""
+    request, resolved = check_certify_plan(scenario, waypoints, CertifyOptions(particles, iterations, epsilon),
+                                           seed, settings, engine, threads)
+    return run_certificate(request, resolved, progress)
 
-    resolved = get_engine(engine, threads)
+
+def check_certify_plan(scenario: Scenario, waypoints: np.ndarray, options: CertifyOptions, seed: int = 0,
+                       settings: SolverSettings | None = None, engine: "str | Engine" = "auto",
+                       threads: int | None = None, warn: Callable[[str], None] | None = None,
+                       source: str | None = None) -> tuple[CertifyRequest, Engine]:
+    """Every check a certificate of ``waypoints`` needs, made once: finite and moderate, inside
+    the site box, the budget and settings (:func:`staghunt.solvers.response.check_certify`), the
+    engine and the memory. ``source``: the file the plan comes from (named in the messages).
+    Returns the checked request and the resolved engine for :func:`run_certificate`."""
+    where = f"{source}: " if source else ""
     wp = check_waypoints(waypoints, scenario.n_uavs)
     outside = outside_site(CostModel.from_scenario(scenario), wp, [u.name for u in scenario.team])
     if outside:  # no certificate for a plan the site does not hold
-        raise ValueError(outside[0] + (f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""))
-    if isinstance(particles, int) and isinstance(iterations, int):
-        check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
-                                      particles, iterations, resolved, threads),
-                     shrink="fewer certificate particles or iterations")
-    runner = resolved.run_swarm
-    return _certify_plan(scenario, waypoints, particles=particles, iterations=iterations, seed=seed,
-                         epsilon=epsilon, settings=settings, progress=progress, runner=runner)
+        more = f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""
+        raise FieldError(f"{where}{'uavs: ' if source else ''}{outside[0]}{more}", "waypoints")
+    request = check_certify(scenario, wp, options, seed, settings,
+                            what=f"{source}: settings" if source else "certificate settings")
+    resolved = get_engine(engine, threads)
+    check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
+                                  options.particles, options.iterations, resolved, threads),
+                 shrink="a smaller certificate budget (particles or iterations)", warn=warn, field="certify")
+    return request, resolved
+
+
+def run_certificate(request: CertifyRequest, engine: Engine,
+                    progress: Callable[[int, int, int, int], None] | None = None) -> Certificate:
+    """The certificate of a checked request, its searches run by ``engine``."""
+    return _certify_plan(request, progress=progress, runner=engine.run_swarm)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -81,7 +107,9 @@ def certify_plan(
 
 def plan_from_result_data(data: dict[str, Any], source: str = "RESULT.json") -> tuple[Scenario, np.ndarray, SolverSettings]:
     """The scenario, free waypoints ``(N, K, 3)`` and solver settings embedded in a parsed
-    ``result.json`` (as :func:`staghunt.io.result_json.read_result` returns it).
+    ``result.json`` (as :func:`staghunt.io.result_json.read_result` returns it). The settings
+    are read, not judged: a search with them is checked where it is made
+    (:func:`check_certify_plan`, :func:`staghunt.api.check_plan`).
 
     Waypoints are ``uavs[n].path`` x, y and ``uavs[n].heights`` (h above ground) without the
     start and goal. Raises ``ValueError`` with one line naming the offending field.
@@ -127,12 +155,6 @@ def plan_from_result_data(data: dict[str, Any], source: str = "RESULT.json") -> 
         settings = base.with_(**{k: v for k, v in raw_settings.items() if k in known})
     except TypeError as exc:
         raise ValueError(f"{source}: settings: {exc}") from None
-    from staghunt.scenario.model import check_settings
-
-    check_settings(settings, what=f"{source}: settings")  # e.g. velocity_fraction = 0: no search
-    if settings.c1 == 0 and settings.c2 == 0:
-        raise ValueError(f"{source}: settings: c1 and c2 are both 0, so no search can move towards a "
-                         "better path; such settings certify nothing")
     return scenario, np.stack(rows), settings
 
 
@@ -155,23 +177,12 @@ def certify_result_file(
     ``data``: the file's content already read with :func:`staghunt.io.result_json.read_result`
     (the file is then not read again: it may be a pipe). Refuses (``ValueError``) a plan whose
     waypoints leave the site box, and a budget that cannot fit in memory."""
-    from staghunt.budget import check_memory, estimate_certify
-    from staghunt.checks import outside_site
-    from staghunt.costs import CostModel
-    from staghunt.io.result_json import read_result
-
     if data is None:
         data = read_result(path)
     scenario, wp, settings = plan_from_result_data(data, str(path))
-    outside = outside_site(CostModel.from_scenario(scenario), wp, [u.name for u in scenario.team])
-    if outside:
-        raise ValueError(f"{path}: uavs: {outside[0]}" + (f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""))
-    check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
-                                  particles, iterations, engine, threads),
-                 shrink="a smaller --particles or --iterations", warn=warn)
-    cert = certify_plan(scenario, wp, particles=particles, iterations=iterations, seed=seed,
-                        epsilon=epsilon, settings=settings, progress=progress,
-                        engine=engine, threads=threads)
+    request, resolved = check_certify_plan(scenario, wp, CertifyOptions(particles, iterations, epsilon), seed,
+                                           settings, engine, threads, warn, source=str(path))
+    cert = run_certificate(request, resolved, progress)
     stored = [u.get("cost", {}).get("total") for u in data["uavs"]]
     for u, s in zip(cert.uavs, stored):
         if isinstance(s, (int, float)) and not _close(float(s), u.current):

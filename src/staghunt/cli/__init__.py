@@ -44,8 +44,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser = Parser(
         prog=PROG,
         description="Cooperative multi-UAV path planning as a stag hunt game (game-based SPSO).",
-        epilog="Exit codes: 0 feasible/success, 3 infeasible plan (result still written), "
-        "2 bad input, 130 interrupted.",
+        epilog="Exit codes: 0 feasible/success, 3 the answer is no (infeasible plan, result still "
+        "written; no equilibrium; export refused), 2 bad input, 130 interrupted, 141 stdout closed early "
+        "(files already written), 1 internal error.",
     )
     parser.add_argument("--version", action="version", version=f"%(prog)s {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
@@ -106,7 +107,7 @@ def _main(argv: Sequence[str] | None) -> int:
     except BrokenPipeError:
         raise
     except (ValueError, OSError, OverflowError) as exc:  # ScenarioError and MemoryBudgetError are ValueErrors
-        return error(one_line(exc))
+        return error(one_line(exc, args.command))
     except RecursionError:
         return error("input nested too deeply")
     except MemoryError:

@@ -155,7 +155,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         for m in methods:  # every run must be possible (and fit in memory) before the first starts
             checked_request(scenario, settings, args, certify_options(args), method=m)
     except (ValueError, OSError) as exc:
-        return error(one_line(exc))
+        return error(one_line(exc, "compare"))
     certify = certify_options(args)
     total = len(methods) * len(seeds)
     if not args.quiet:
@@ -182,7 +182,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         listener.close()
-        return error(one_line(exc))
+        return error(one_line(exc, "compare"))
     listener.close()
     print(format_report(report))
     written = [out / "compare.json", out / "compare.csv"]
@@ -244,7 +244,7 @@ def cmd_certify(args: argparse.Namespace) -> int:
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
         line.close()
-        return error(one_line(exc))
+        return error(one_line(exc, "certify"))
     line.close()
     print(
         f"{args.result}: method {data.get('method')}, seed {data.get('seed')}, scenario "

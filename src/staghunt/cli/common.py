@@ -119,28 +119,62 @@ def budget_settings(scenario: Any, args: argparse.Namespace) -> Any:
                                  waypoints=args.waypoints, starts=args.starts)
 
 
-REQUEST_FLAGS = {
+FIELD_FLAGS = {
     "method": "--method",
     "seed": "--seed",
     "settings": "--particles, --iterations, --waypoints, --starts or the scenario's [solver]",
     "certify": "--certify-particles, --certify-iterations, --epsilon; --no-certify skips the certificate",
     "stop": "--stop certified; drop --no-certify",
+    "origin": "--origin LAT,LON,ALT",
+    "out": "--out",
+    "force": "--force",
+    "altitude_frame": "--altitude-frame, --formats",
+    "formats": "--formats",
+    "seeds": "--seeds",
+    "methods": "--methods",
 }
-"""How the command line names each field of a refused run (:class:`staghunt.api.PlanRequestError`)."""
+"""How the command line names the argument at fault of a refusal
+(:class:`staghunt.errors.FieldError`: ``field``); per command in :data:`COMMAND_FLAGS`."""
+
+COMMAND_FLAGS = {
+    "certify": {"certify": "--particles, --iterations, --epsilon", "settings": "the file's settings"},
+    "fly": {"settings": "--particles, --iterations, --waypoints or the scenario's [solver]"},
+}
+
+SHRINK_FLAGS: dict[Any, str] = {
+    "threads": "fewer threads (--threads) or waypoints",
+    "iterations": "fewer iterations (--iterations)",
+    ("certify", "certify"): "a smaller --particles or --iterations",
+}
+"""How to shrink a run that cannot fit in memory (:class:`staghunt.budget.MemoryBudgetError`),
+in flags."""
+
+
+def worded(exc: BaseException, command: str | None = None) -> str:
+    """The text of ``exc`` as the command line says it: a :class:`staghunt.errors.FieldError`
+    gets the flags of its field (of ``command``), a memory refusal its remedy in flags."""
+    from staghunt.budget import MemoryBudgetError
+    from staghunt.errors import FieldError
+
+    if isinstance(exc, MemoryBudgetError):
+        shrink = SHRINK_FLAGS.get((command, exc.field), SHRINK_FLAGS.get(exc.field))
+        return f"{exc.need}; use {shrink}" if shrink else str(exc)
+    if isinstance(exc, FieldError):
+        flags = COMMAND_FLAGS.get(command or "", {}).get(exc.field, FIELD_FLAGS.get(exc.field))
+        return f"{exc} ({flags})" if flags else str(exc)
+    return str(exc)
 
 
 def checked_request(scenario: Any, settings: Any, args: argparse.Namespace, certify: Any,
                     method: str | None = None, memory: bool = True) -> Any:
     """The run of ``scenario`` checked once (:func:`staghunt.api.check_plan`) with the options in
-    ``args`` (``method`` overrides ``--method``); a refusal is re-worded with the flags at fault."""
-    from staghunt.api import PlanRequestError, check_plan
+    ``args`` (``method`` overrides ``--method``); a refusal (:class:`staghunt.api.PlanRequestError`)
+    is worded with the flags at fault where it is reported (:func:`one_line`)."""
+    from staghunt.api import check_plan
 
-    try:
-        return check_plan(scenario, method or args.method, getattr(args, "seed", 0), settings,
-                          getattr(args, "engine", "auto"), getattr(args, "threads", None), certify,
-                          warn=say, stop=getattr(args, "stop", "budget"), memory=memory)
-    except PlanRequestError as exc:
-        raise ValueError(f"{exc} ({REQUEST_FLAGS.get(exc.field, exc.field)})") from None
+    return check_plan(scenario, method or args.method, getattr(args, "seed", 0), settings,
+                      getattr(args, "engine", "auto"), getattr(args, "threads", None), certify,
+                      warn=say, stop=getattr(args, "stop", "budget"), memory=memory)
 
 
 def epsilon_value(text: str) -> float:
@@ -217,9 +251,10 @@ def os_reason(exc: OSError) -> str:
     return f"{reason}: {exc.filename!r}" if exc.filename else reason
 
 
-def one_line(exc: BaseException) -> str:
-    """An exception as one line of text (an ``OSError`` naming its file)."""
-    text = os_reason(exc) if isinstance(exc, OSError) else str(exc)
+def one_line(exc: BaseException, command: str | None = None) -> str:
+    """An exception as one line of text (an ``OSError`` naming its file; a refusal naming the
+    flags of ``command`` at fault: :func:`worded`)."""
+    text = os_reason(exc) if isinstance(exc, OSError) else worded(exc, command)
     return " ".join(text.split()) or type(exc).__name__
 
 

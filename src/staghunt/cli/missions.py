@@ -105,7 +105,7 @@ def cmd_export(args: argparse.Namespace) -> int:
                                force=args.force, plots=not args.no_plots, simulate=args.simulate,
                                progress=progress, altitude_frame=args.altitude_frame)
     except ExportRefused as exc:
-        error(one_line(exc))
+        error(one_line(exc, "export"))
         return EXIT_NEGATIVE
     s = report.safety
     print(f"mission: {report.duration:.1f} s ({report.duration / report.bound:.2f} x the bound "

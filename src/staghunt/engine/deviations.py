@@ -9,7 +9,7 @@ import numpy as np
 
 from staghunt.costs import CostModel
 from staghunt.engine import kernels as kn
-from staghunt.engine.arrays import SwarmArrays
+from staghunt.engine.arrays import no_swarm
 from staghunt.engine.numba_engine import _model_arrays_cached, _Pass, evaluate
 from staghunt.engine.scratch import Scratch
 
@@ -30,8 +30,7 @@ class Deviations:
         self.ma = replace(ma, par=np.concatenate([ma.par, constants]))
         member = np.full(N, -1, dtype=np.int64)
         member[n] = 0
-        self.sa = SwarmArrays(sw=np.zeros((0, 22)), member=member, offsets=np.zeros((N, 3)),
-                              fixed=np.zeros((N, K, 3)), players=np.array([n], dtype=np.int64))
+        self.sa = no_swarm(N, K, players=np.array([n], dtype=np.int64), member=member)
         self.plan, self.n = plan, n
         self._runs: dict[int, _Pass] = {}
         self._scratch: Scratch | None = None

@@ -12,7 +12,9 @@ Two entry points run one block of ``nb <= B`` particles, in this order:
 iterations in one call (both entries over all blocks, serially or in a ``prange`` over the
 blocks, then the global best), so a small swarm pays no per-block dispatch from Python and no
 Python-level barrier per iteration. Intermediate results stay in the block's
-scratch arrays (:class:`staghunt.engine.numba_engine.Scratch`). The parts of each entry are
+scratch arrays (:class:`staghunt.engine.scratch.Scratch`). Callers bind the arrays by these
+kernels' parameter names (:func:`staghunt.engine.arrays.kernel_args`), so each definition below is
+the one place that spells its argument order. The parts of each entry are
 :func:`~staghunt.engine.jit.subroutine` s, compiled only as part of it; the two entries are
 compiled in parallel processes the first time (see :func:`staghunt.engine.numba_engine.prepare`).
 
@@ -20,15 +22,17 @@ Layout: the particle index is innermost, so the loops over a block's lanes vecto
 
 - Swarm state: ``X``, ``V``, ``PB``: ``(S, K, 3, P)``; ``gbest``: ``(S, K, 3)``;
   ``cost``, ``pcost``: ``(C, P)``; ``viol``, ``pviol``: ``(P,)``; ``J``: ``(N, P)`` per-UAV ``J_n``.
-- Model arrays (:mod:`staghunt.engine.arrays`): ``uav (N, 11)`` = start ``(x, y, h)``, goal
-  ``(x, y, h)``, start ``z``, goal ``z``, radius, ``beta``, separation limit ``d_s + 2 r``;
+- Model arrays (:mod:`staghunt.engine.arrays`): ``uav (N, U_COLUMNS)`` = start ``(x, y, h)``,
+  goal ``(x, y, h)``, start ``z``, goal ``z``, radius, ``beta``, separation limit ``d_s + 2 r``
+  (columns ``U_*`` below);
   ``weights (N, 5)``; ``cyl (T, 3)``; ``prm (Q, 8)`` prisms = base, top, first edge, edge
   count, bounding box; ``pedge (E, 4)`` footprint edges (:func:`staghunt.world.prism_arrays`);
   ``heads``, ``tails (M,)``; ``mu (N, M)``; ``ref_diff (M, 3)``;
   ``grid (R, Cg)``; ``par`` (see ``P_*`` indices below).
-- Swarm arrays: ``sw (S, 22)`` = decoding start ``(x, y, h)``, decoding box low, high, search
-  range low, high, velocity limit (each 3, over ``(rho, psi, phi)`` for the last three), then
-  a flag (1: ``|psi| <= pi/4`` and ``|phi - c| <= pi/4``), ``c``, ``sin c``, ``cos c``;
+- Swarm arrays: ``sw (S, SW_COLUMNS)`` = decoding start ``(x, y, h)``, decoding box low, high,
+  search range low, high, velocity limit (each 3, over ``(rho, psi, phi)`` for the last three),
+  then a flag (1: ``|psi| <= pi/4`` and ``|phi - c| <= pi/4``), ``c``, ``sin c``, ``cos c``
+  (columns ``SW_*`` below);
   ``member (N,)``; ``offsets (N, 3)``; ``fixed (N, K, 3)``; ``players (C,)``.
 
 Semantics are those of the NumPy reference (``staghunt.costs``, ``staghunt.solvers.swarm``),
@@ -61,7 +65,7 @@ from staghunt.engine.fastmath import (
 
 # Indices into ``par``.
 P_MARGIN = 0
-P_SAFE = 1  # d_s (informational: the limits d_s + 2 r are in ``uav[:, 10]``)
+P_SAFE = 1  # d_s (informational: the limits d_s + 2 r are in ``uav[:, U_LIMIT]``)
 P_THR_TURN = 2
 P_THR_CLIMB = 3
 P_HREF = 4
@@ -85,6 +89,31 @@ own, and ``J`` of the other UAVs is NaN (as :meth:`SwarmProblem.evaluate`)."""
 
 PRUNE_MIN_UAVS = 4  # separation pairs are pruned by segment bounding boxes for N above this
 PRUNE_GUARD = 1e-6  # m added to a pair's limit before a box gap counts as clear
+
+# Columns of ``uav (N, U_COLUMNS)`` (:func:`staghunt.engine.arrays.model_arrays`). Module-level
+# integers: Numba freezes them as compile-time constants, so naming them costs nothing.
+U_START = 0  # start (x, y, h): columns 0, 1, 2
+U_GOAL = 3  # goal (x, y, h): columns 3, 4, 5
+U_START_Z = 6  # start's absolute z
+U_GOAL_Z = 7  # goal's absolute z
+U_RADIUS = 8  # the UAV's radius r
+U_BETA = 9  # its formation weight beta
+U_LIMIT = 10  # its separation limit d_s + 2 r
+U_COLUMNS = 11
+
+# Columns of ``sw (S, SW_COLUMNS)`` (:func:`staghunt.engine.arrays.swarm_arrays`); the blocks of
+# three run over (x, y, h) for the decoding box, over (rho, psi, phi) for the search range.
+SW_START = 0  # decoding start (x, y, h)
+SW_LOW = 3  # decoding box, low
+SW_HIGH = 6  # decoding box, high
+SW_RANGE_LOW = 9  # search range, low
+SW_RANGE_HIGH = 12  # search range, high
+SW_VMAX = 15  # velocity limit
+SW_SMALL = 18  # 1.0: |psi| <= pi/4 and |phi - c| <= pi/4 (the decoder's fast path)
+SW_CENTRE = 19  # c, the centre of phi's range
+SW_SIN = 20  # sin c
+SW_COS = 21  # cos c
+SW_COLUMNS = 22
 
 MODE_INIT = 0  # draw uniform positions, evaluate, personal bests = positions
 MODE_STEP = 1  # PSO step, evaluate, personal bests by dominance
@@ -331,7 +360,7 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, prm, pedge, par, seg, sub, ang, 
     xn, yn, zn, hn = px[n], py[n], pz[n], ph[n]  # (K+2, B), heights (K, B)
     K = hn.shape[0]
     S = K + 1
-    radius = uav[n, 8]
+    radius = uav[n, U_RADIUS]
     margin = par[P_MARGIN]
     clear = par[P_CLEAR]
 
@@ -578,7 +607,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             if solo and not (_is_player(players, a) or _is_player(players, c)):
                 continue
             if prune:
-                reach = max(uav[a, 10], uav[c, 10]) + PRUNE_GUARD
+                reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
                 any_near = False
                 for j in range(S):
                     g = max(max(box[0, c, j] - box[1, a, j], box[0, a, j] - box[1, c, j]),
@@ -632,7 +661,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     for n in range(N):
         if solo and not every and not _is_player(players, n):
             continue
-        limit = uav[n, 10]
+        limit = uav[n, U_LIMIT]
         for k in range(K):
             for b in range(nb):
                 d = math.sqrt(near2[n, k, b])
@@ -656,7 +685,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             for b in range(nb):
                 tmp[k, b] = np.inf if hit[0, k, b] != 0.0 else E[n, k, b]
         pairwise_lanes(tmp, K, nb, acc)
-        beta = uav[n, 9]
+        beta = uav[n, U_BETA]
         for b in range(nb):
             vio[n, 2, b] = acc2[b]
             jf = acc[b]
@@ -692,9 +721,9 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     for s in range(S):
         for k in range(K):
             for c in range(3):
-                lo = sw[s, 9 + c]
-                hi = sw[s, 12 + c]
-                vm = sw[s, 15 + c]
+                lo = sw[s, SW_RANGE_LOW + c]
+                hi = sw[s, SW_RANGE_HIGH + c]
+                vm = sw[s, SW_VMAX + c]
                 g = gbest[s, k, c]
                 base = np.uint64((((it * S + s) * K + k) * 3 + c)) * np.uint64(P) + np.uint64(q0)
                 xr, vr, pr = X[s, k, c, q0:q0 + nb], V[s, k, c, q0:q0 + nb], PB[s, k, c, q0:q0 + nb]
@@ -717,10 +746,10 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
                     xr[b] = min(max(x, lo), hi)
 
     for s in range(S):
-        small = sw[s, 18] != 0.0
-        ctr, s0, c0 = sw[s, 19], sw[s, 20], sw[s, 21]
+        small = sw[s, SW_SMALL] != 0.0
+        ctr, s0, c0 = sw[s, SW_CENTRE], sw[s, SW_SIN], sw[s, SW_COS]
         for c in range(3):
-            _fill(prev[c], nb, sw[s, c])
+            _fill(prev[c], nb, sw[s, SW_START + c])
         for k in range(K):
             rr, pr, fr = X[s, k, 0, q0:q0 + nb], X[s, k, 1, q0:q0 + nb], X[s, k, 2, q0:q0 + nb]
             if small:  # psi within pi/4 of 0, phi within pi/4 of ctr: no range reduction
@@ -741,8 +770,8 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
                     sth[b] = rr[b] * sp
             for c in range(3):
                 st = stx if c == 0 else (sty if c == 1 else sth)
-                lo = sw[s, 3 + c]
-                hi = sw[s, 6 + c]
+                lo = sw[s, SW_LOW + c]
+                hi = sw[s, SW_HIGH + c]
                 for b in range(nb):
                     prev[c, b] = min(max(prev[c, b] + st[b], lo), hi)
                 for b in range(nb):
@@ -771,12 +800,12 @@ def _absolute_z(nb, px, py, ph, pz, uav, grid, par) -> None:  # noqa: ANN001
     N, K = ph.shape[0], ph.shape[1]
     flat = par[P_TERRAIN] == 0.0
     for n in range(N):
-        _fill(px[n, 0], nb, uav[n, 0])
-        _fill(py[n, 0], nb, uav[n, 1])
-        _fill(pz[n, 0], nb, uav[n, 6])
-        _fill(px[n, K + 1], nb, uav[n, 3])
-        _fill(py[n, K + 1], nb, uav[n, 4])
-        _fill(pz[n, K + 1], nb, uav[n, 7])
+        _fill(px[n, 0], nb, uav[n, U_START])
+        _fill(py[n, 0], nb, uav[n, U_START + 1])
+        _fill(pz[n, 0], nb, uav[n, U_START_Z])
+        _fill(px[n, K + 1], nb, uav[n, U_GOAL])
+        _fill(py[n, K + 1], nb, uav[n, U_GOAL + 1])
+        _fill(pz[n, K + 1], nb, uav[n, U_GOAL_Z])
         for k in range(K):
             if flat:
                 for b in range(nb):

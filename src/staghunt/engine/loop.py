@@ -5,11 +5,12 @@ from __future__ import annotations
 
 import os
 import threading
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from staghunt.engine import kernels as kn
+from staghunt.engine.arrays import kernel_args
 from staghunt.engine.scratch import Scratch
 
 os.environ.setdefault("GOMP_SPINCOUNT", "100000")
@@ -66,7 +67,6 @@ def iterate_chunk(it0: int, it1: int, bs: int, threads: int, key: np.uint64, sta
     threads unless the threading layer is thread-safe; one thread: its serial loop)."""
     import numba
 
-    ma, sa = run.ma, run.sa
     parallel = threads > 1
     safe = not parallel or _thread_safe_layer()
     if parallel:
@@ -75,15 +75,37 @@ def iterate_chunk(it0: int, it1: int, bs: int, threads: int, key: np.uint64, sta
     if not safe:
         _LAYER_LOCK.acquire()
     try:
-        kn.iterate(it0, it1, bs, not parallel, key, state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw,
-                   sa.member, sa.offsets, sa.fixed, ma.par, ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid,
-                   ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, sa.players, run.pcost, run.pviol,
-                   run.cost, run.viol, run.J, gcost, history, rhistory, hviol, w.sww, w.px, w.py, w.pz,
-                   w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc,
-                   w.acc2, w.flag, w.terms, w.vio, w.form, w.hit, w.rx, w.ry, w.rz, w.better, w.res,
-                   run.wp, run.terms_out, run.vio_out, run.res_out)
+        kn.iterate(it0, it1, bs, not parallel, *_bound(run, w, key, state, gcost, history, rhistory, hviol))
     finally:
         if not safe:
             _LAYER_LOCK.release()
         if parallel:
             numba.set_parallel_chunksize(0)
+
+
+ITERATE_PER_CALL = ("it0", "it1", "bs", "serial")
+"""The compiled loop's leading parameters given at each call; the rest are bound by name once per
+run (:func:`staghunt.engine.arrays.kernel_args`)."""
+
+
+class _RunState(NamedTuple):
+    """What :func:`kernels.iterate` takes besides the run's, model's, swarm's and scratch arrays."""
+
+    key: np.uint64
+    state: np.ndarray
+    gcost: np.ndarray
+    history: np.ndarray
+    rhistory: np.ndarray
+    hviol: np.ndarray
+
+
+def _bound(run: Any, w: Scratch, key: np.uint64, state: np.ndarray, gcost: np.ndarray, history: np.ndarray,
+           rhistory: np.ndarray, hviol: np.ndarray) -> tuple[Any, ...]:
+    """The arguments of :func:`kernels.iterate` after :data:`ITERATE_PER_CALL`, bound by name once
+    per run (and stack of scratch buffers)."""
+    bound = getattr(run, "_iterate_bound", None)
+    if bound is None or bound[0] is not w or bound[1] is not state:
+        extra = _RunState(key, state, gcost, history, rhistory, hviol)
+        bound = (w, state, kernel_args(kn.iterate, extra, run, run.ma, run.sa, w, per_call=ITERATE_PER_CALL))
+        run._iterate_bound = bound
+    return bound[2]

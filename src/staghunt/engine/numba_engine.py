@@ -25,13 +25,13 @@ import threading
 import time
 from contextlib import contextmanager
 from dataclasses import replace
-from typing import TYPE_CHECKING, Callable, Iterable, Iterator
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Iterator
 
 import numpy as np
 
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
-from staghunt.engine.arrays import ModelArrays, SwarmArrays, model_arrays, swarm_arrays
+from staghunt.engine.arrays import ModelArrays, SwarmArrays, kernel_args, model_arrays, no_swarm, swarm_arrays
 from staghunt.engine.loop import (
     CHUNK_ITERATIONS,
     MIN_SHARED_PARTICLES,
@@ -67,6 +67,12 @@ _ready = threading.Event()
 _prepare_lock = threading.Lock()
 
 
+UAV_PASS_PER_CALL = ("mode", "q0", "nb", "it", "key", "inertia")
+TEAM_PASS_PER_CALL = ("mode", "q0", "nb")
+"""The kernel entries' leading parameters given at each call; the rest are bound by name
+(:func:`staghunt.engine.arrays.kernel_args`)."""
+
+
 class _Pass:
     """The arrays of one run of ``P`` particles (or, with ``wp`` ``(Q, N, K, 3)``, one
     evaluation of ``Q`` allocations) and the two kernel calls per block."""
@@ -95,6 +101,7 @@ class _Pass:
         self.scratch: list[Scratch] = []
         self.N, self.K, self.S = N, K, S
         self.mode, self.it, self.key, self.inertia = kn.MODE_INIT, 0, np.uint64(0), 0.0
+        self._bound: dict[int, tuple[Any, ...]] = {}
 
     def ensure_scratch(self, threads: int) -> None:
         """Borrow block buffers for ``threads`` threads from the pool (see :meth:`release`)."""
@@ -109,20 +116,17 @@ class _Pass:
 
     def block(self, q0: int, nb: int, worker: int, entries: Iterable[str] = ("uav_pass", "team_pass")) -> None:
         """Run the kernel entries on particles ``q0 .. q0+nb`` (``nb <= B``) with ``worker``'s scratch."""
-        w, ma, sa = self.scratch[worker], self.ma, self.sa
+        w = self.scratch[worker]
+        bound = self._bound.get(worker)
+        if bound is None or bound[0] is not w:  # the arrays, bound once by the kernels' parameter names
+            bound = self._bound[worker] = (
+                w, kernel_args(kn.uav_pass, self, self.ma, self.sa, w, per_call=UAV_PASS_PER_CALL),
+                kernel_args(kn.team_pass, self, self.ma, self.sa, w, per_call=TEAM_PASS_PER_CALL))
         for name in entries:
             if name == "uav_pass":
-                kn.uav_pass(self.mode, q0, nb, self.it, self.key, self.inertia, self.X, self.V, self.PB,
-                            self.gbest, self.initial, sa.sw, sa.member, sa.offsets, sa.fixed, ma.par, self.wp,
-                            ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
-                            w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag,
-                            w.terms, w.vio)
+                kn.uav_pass(self.mode, q0, nb, self.it, self.key, self.inertia, *bound[1])
             else:
-                kn.team_pass(self.mode, q0, nb, w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails,
-                             ma.mu, ma.ref_diff, ma.par, w.form, w.hit, w.rx, w.ry, w.rz, w.tmp, w.acc,
-                             w.acc2, w.flag, w.better, w.terms, w.vio, w.res, self.X, self.PB, self.pcost,
-                             self.pviol, self.cost, self.viol, self.J, sa.players, self.terms_out,
-                             self.vio_out, self.res_out)
+                kn.team_pass(self.mode, q0, nb, *bound[2])
 
     def work(self, p0: int, p1: int, worker: int) -> None:
         """All particles ``p0 .. p1`` in blocks of ``B``."""
@@ -142,8 +146,11 @@ def _tiny(entries: Iterable[str]) -> None:
     par = np.zeros(kn.N_PAR)
     par[kn.P_MARGIN], par[kn.P_SAFE], par[kn.P_HREF], par[kn.P_CONTINUOUS] = 10.0, 2.0, 20.0, 1.0
     par[kn.P_CELL], par[kn.P_C1], par[kn.P_C2] = 1.0, 1.5, 1.5
-    uav = np.array([[10.0, 10.0, 20.0, 80.0, 80.0, 20.0, 20.0, 20.0, 1.0, 1.0, 4.0],
-                    [20.0, 10.0, 20.0, 90.0, 80.0, 20.0, 20.0, 20.0, 1.0, 1.0, 4.0]])
+    uav = np.zeros((N, kn.U_COLUMNS))
+    uav[:, kn.U_START:kn.U_START + 3] = [[10.0, 10.0, 20.0], [20.0, 10.0, 20.0]]
+    uav[:, kn.U_GOAL:kn.U_GOAL + 3] = [[80.0, 80.0, 20.0], [90.0, 80.0, 20.0]]
+    uav[:, kn.U_START_Z], uav[:, kn.U_GOAL_Z] = 20.0, 20.0
+    uav[:, kn.U_RADIUS], uav[:, kn.U_BETA], uav[:, kn.U_LIMIT] = 1.0, 1.0, 4.0
     par[kn.P_CEIL] = np.inf
     ma = ModelArrays(uav=uav, weights=np.ones((N, 5)), cyl=np.array([[50.0, 50.0, 4.0]]),
                      prm=np.array([[-np.inf, 30.0, 0.0, 4.0, 60.0, 70.0, 20.0, 30.0]]),
@@ -153,9 +160,15 @@ def _tiny(entries: Iterable[str]) -> None:
                      mu=np.ones((N, 1)), ref_diff=np.array([[-10.0, 0.0, 0.0]]), grid=np.zeros((1, 1)),
                      par=par)
     q = np.pi / 4
-    row = [10.0, 10.0, 20.0, 0.0, 0.0, 5.0, 100.0, 100.0, 35.0, 0.0, -q, 0.0, 50.0, q, 2 * q,
-           25.0, q, q, 1.0, q, np.sin(q), np.cos(q)]
-    sa = SwarmArrays(sw=np.array([row, row]), member=np.arange(N, dtype=np.int64), offsets=np.zeros((N, 3)),
+    sw = np.zeros((N, kn.SW_COLUMNS))
+    sw[:, kn.SW_START:kn.SW_START + 3] = [10.0, 10.0, 20.0]
+    sw[:, kn.SW_LOW:kn.SW_LOW + 3] = [0.0, 0.0, 5.0]
+    sw[:, kn.SW_HIGH:kn.SW_HIGH + 3] = [100.0, 100.0, 35.0]
+    sw[:, kn.SW_RANGE_LOW:kn.SW_RANGE_LOW + 3] = [0.0, -q, 0.0]
+    sw[:, kn.SW_RANGE_HIGH:kn.SW_RANGE_HIGH + 3] = [50.0, q, 2 * q]
+    sw[:, kn.SW_VMAX:kn.SW_VMAX + 3] = [25.0, q, q]
+    sw[:, kn.SW_SMALL], sw[:, kn.SW_CENTRE], sw[:, kn.SW_SIN], sw[:, kn.SW_COS] = 1.0, q, np.sin(q), np.cos(q)
+    sa = SwarmArrays(sw=sw, member=np.arange(N, dtype=np.int64), offsets=np.zeros((N, 3)),
                      fixed=np.zeros((N, K, 3)), players=np.arange(N, dtype=np.int64))
     run = _Pass(ma, sa, N, K, N, N, P)
     run.ensure_scratch(1)
@@ -256,9 +269,7 @@ def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
     prepare()
     wp = np.array(waypoints, dtype=np.float64, order="C", copy=True)
     P, N, K = wp.shape[0], wp.shape[1], wp.shape[2]
-    sa = SwarmArrays(sw=np.zeros((0, 22)), member=np.zeros(N, dtype=np.int64), offsets=np.zeros((N, 3)),
-                     fixed=np.zeros((N, K, 3)), players=np.zeros(1, dtype=np.int64))
-    run = _Pass(_model_arrays_cached(model), sa, N, K, 0, 1, 0, wp=wp)
+    run = _Pass(_model_arrays_cached(model), no_swarm(N, K), N, K, 0, 1, 0, wp=wp)
     run.mode = kn.MODE_EVALUATE
     run.ensure_scratch(1)
     try:

@@ -18,7 +18,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from staghunt.engine import get_engine
+from staghunt.api import PlanRequest, check_plan, plan
 from staghunt.flight.reference import Reference
 from staghunt.flight.known import check_piece, swept_obstacles
 from staghunt.flight.replan import FlyConfig, ReplanRecord, Replanner, offline_plan
@@ -286,22 +286,21 @@ def judge(scenario: Scenario, dyn: Dynamics, flight: dict[str, Any]) -> dict[str
     }
 
 
-def plan_around(scenario: Scenario, dyn: Dynamics, waypoints: np.ndarray | None, seed: int,
-                settings: SolverSettings, config: FlyConfig, engine: Any
+def plan_around(request: PlanRequest, dyn: Dynamics, waypoints: np.ndarray | None, config: FlyConfig
                 ) -> tuple[np.ndarray, Reference, tuple[tuple[str, float, float], ...]]:
     """The offline plan made sound against the known motions (docs/model.md, section 8): plan
-    ``scenario`` with the default method (unless ``waypoints`` ``(N, K, 3)`` are given), time it,
-    and re-plan with the swept stand-ins of its conflict windows until it passes the in-time
-    check. Returns the waypoints, the timed reference and the windows; raises
-    :class:`FlightInputError` if a conflict remains."""
-    from staghunt.api import plan as make_plan
+    the request's scenario (:func:`staghunt.api.check_plan`: the method, seed, settings and
+    engine, checked once) unless ``waypoints`` ``(N, K, 3)`` are given, time it, and re-plan
+    with the swept stand-ins of its conflict windows until it passes the in-time check. Returns
+    the waypoints, the timed reference and the windows; raises :class:`FlightInputError` if a
+    conflict remains."""
+    scenario = request.scenario
 
     def solve(windows: list[tuple[str, float, float]]) -> np.ndarray:
         c2, p2 = swept_obstacles(scenario, dyn, windows)
         world = replace(scenario.world, cylinders=scenario.world.cylinders + c2,
                         prisms=scenario.world.prisms + p2)
-        return np.array(make_plan(replace(scenario, world=world), seed=seed, settings=settings,
-                                  engine=engine).waypoints)
+        return np.array(plan(request.with_scenario(replace(scenario, world=world))).waypoints)
 
     wp = solve([]) if waypoints is None else np.asarray(waypoints, dtype=float)
     wp, piece, windows, problems = offline_plan(scenario, dyn, wp, config, solve)
@@ -363,14 +362,12 @@ def fly(
     it); default the scenario's own. The plan is first made sound against the known motions
     (:func:`~staghunt.flight.replan.offline_plan`). ``seed``: one generator seeds the offline
     plan, the re-plans, the sensor noise and the wind, so the same inputs and seed give the
-    same flight. Raises ``ValueError`` (a :class:`~staghunt.scenario.ScenarioError` or
-    :class:`FlightInputError`, one line naming what is at fault) for inputs that cannot be
-    flown, before any simulation."""
+    same flight. Raises ``ValueError`` (a :class:`~staghunt.scenario.ScenarioError`, a
+    :class:`~staghunt.api.PlanRequestError` for the seed, settings or engine, checked once by
+    :func:`~staghunt.api.check_plan`, or a :class:`FlightInputError`; one line naming what is
+    at fault) for inputs that cannot be flown, before any simulation."""
     from staghunt.scenario.dynamics import load_events
-    from staghunt.scenario.model import check_settings
 
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ValueError(f"seed must be an integer >= 0, got {seed!r}")
     config = config or FlyConfig()
     config.check()
     scenario, source_waypoints, plan_settings = _source(source)
@@ -387,16 +384,15 @@ def fly(
     else:
         dyn = load_events(events, scenario)
     scenario = replace(scenario, dynamics=dyn)
-    settings = settings or plan_settings or scenario.solver
-    check_settings(settings)
-    resolved = get_engine(engine, threads)
+    request = check_plan(scenario, "game", seed, settings or plan_settings or scenario.solver, engine, threads)
+    resolved = request.engine
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
     wall0 = time.perf_counter()
     rng = np.random.default_rng(seed)
 
     planned_here = waypoints is None
-    wp, ref0, windows = plan_around(scenario, dyn, waypoints, seed, settings, config, resolved)
+    wp, ref0, windows = plan_around(request, dyn, waypoints, config)
     check_events_against_plan(scenario, dyn, ref0)
     flight, replans, stops, ending, message = simulate(scenario, dyn, ref0, config, resolved,
                                                        rng.spawn(1)[0], progress)

@@ -48,7 +48,7 @@ from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
 from staghunt.flight.safety import static_clearance
 from staghunt.scenario import Scenario
 from staghunt.solvers.game import best_response_rounds
-from staghunt.solvers.response import certify_plan
+from staghunt.solvers.response import CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
 
@@ -287,12 +287,12 @@ class Replanner:
         model = CostModel.from_scenario(sub)
         base, t0, max_stretch = splice
         runner, workers = side_by_side(self.engine)
+        options = CertifyOptions(cfg.certify_particles, cfg.certify_iterations, cfg.epsilon)
+        search = check_search(settings, options, "re-plan settings")  # once for every round
         best: tuple[Reference, Any] | None = None
         for round_ in range(cfg.certify_rounds + 1):
-            cert = certify_plan(sub, plan, particles=cfg.certify_particles,
-                                iterations=cfg.certify_iterations, seed=int(self.rng.integers(2**31)),
-                                epsilon=cfg.epsilon, settings=settings, runner=runner,
-                                azimuth=self._azimuth, workers=workers)
+            request = CertifyRequest.of_checked(sub, plan, search, options, int(self.rng.integers(2**31)))
+            cert = certify_plan(request, runner=runner, azimuth=self._azimuth, workers=workers)
             self._spent += sum(u.evaluations for u in cert.uavs)
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)

@@ -87,7 +87,9 @@ def _fsync_dir(directory: Path) -> None:
 
 
 def write_file_set(directory: str | os.PathLike[str], files: Mapping[str, str | bytes],
-                   more: Callable[[Path], Sequence[Path]] | None = None) -> list[Path]:
+                   more: Callable[[Path], Sequence[Path]] | None = None,
+                   previous: Sequence[str] = (),
+                   manifest: Callable[[list[str]], tuple[str, str | bytes]] | None = None) -> list[Path]:
     """Write a set of files into ``directory`` as one: all of them or none.
 
     Every file (``files``: name -> text or bytes; then whatever ``more(stage)`` writes into the
@@ -96,7 +98,12 @@ def write_file_set(directory: str | os.PathLike[str], files: Mapping[str, str | 
     place, each ``os.replace``-ing a file of the same name. A failure or an interrupt while
     staging removes the staging directory (and ``directory`` if this call created it and it is
     empty again); one while moving puts back the files it replaced and removes the ones it had
-    placed. Files in ``directory`` that the set does not name are never touched. Raises
+    placed. ``previous``: the names of the set this one replaces (a previous export's files, as
+    its manifest lists them); those the new set does not name are removed with the move (and put
+    back if it fails), so that the directory never mixes two sets; only regular files directly in
+    ``directory`` are removed. Other files in ``directory`` are never touched. ``manifest``:
+    given the names of every file staged, returns the name and content of one more file (say,
+    ``mission.json`` listing the set, itself included), staged and moved last. Raises
     ``ValueError`` (one line) for a name whose destination is not a regular file, ``OSError`` for
     a failed write (the directory is then as it was)."""
     out = Path(directory)
@@ -114,7 +121,12 @@ def write_file_set(directory: str | os.PathLike[str], files: Mapping[str, str | 
             for p in more(stage):
                 check_replaceable(out / Path(p).name)
                 names.append(Path(p).name)
-        _commit(stage, out, names)
+        if manifest is not None:
+            name, content = manifest(list(names))
+            check_replaceable(out / name)
+            _write_new(stage / name, content, _new_file_mode(out / name))
+            names.append(name)
+        _commit(stage, out, names, _stale(out, previous, names))
     except BaseException:
         kept = None if stage is None else stage / ".replaced"
         if stage is not None and not (kept is not None and kept.is_dir() and any(kept.iterdir())):
@@ -152,13 +164,34 @@ def _write_new(path: Path, content: str | bytes, mode: int) -> None:
         os.fsync(fh.fileno())
 
 
-def _commit(stage: Path, out: Path, names: Sequence[str]) -> None:
-    """Move the staged ``names`` into ``out``; on any failure undo every move made."""
+def _stale(out: Path, previous: Sequence[str], names: Sequence[str]) -> list[str]:
+    """The files of the previous set that the new one does not name: plain names (no directory
+    part, not hidden) of regular files (not followed through a symbolic link) in ``out``."""
+    keep = set(names)
+    stale = []
+    for name in dict.fromkeys(previous):
+        if (not isinstance(name, str) or name in keep or not name or name.startswith(".")
+                or Path(name).name != name or os.sep in name or "/" in name):
+            continue
+        try:
+            if stat.S_ISREG(os.lstat(out / name).st_mode):
+                stale.append(name)
+        except OSError:
+            continue
+    return stale
+
+
+def _commit(stage: Path, out: Path, names: Sequence[str], stale: Sequence[str] = ()) -> None:
+    """Move the staged ``names`` into ``out`` and the ``stale`` files of ``out`` aside (removed
+    with the staging directory); on any failure undo every move made."""
     backup = stage / ".replaced"
     backup.mkdir()
     replaced: list[str] = []
     placed: list[str] = []
     try:
+        for name in stale:
+            os.replace(out / name, backup / name)
+            replaced.append(name)
         for name in names:
             dest = out / name
             if os.path.lexists(dest):

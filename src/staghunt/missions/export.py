@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import stat
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -29,6 +31,7 @@ import numpy as np
 
 from staghunt.costs import CostModel
 from staghunt.costs.model import full_paths, to_absolute
+from staghunt.errors import FieldError
 from staghunt.flight.mission import MissionFlight, fly_mission, read_trajectories_csv
 from staghunt.geo import GeoOrigin, check_origin, site_to_geodetic
 from staghunt.geo.geoid import GEOID_MODEL, geoid_height, geoid_source
@@ -41,8 +44,11 @@ FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories
 (Litchi CSV): one file per UAV; ``kml``, ``geojson``, ``trajectories`` (CSV): one per team."""
 
 
-class ExportRefused(ValueError):
+class ExportRefused(FieldError):
     """The plan is infeasible or unsafe in time and ``force`` was not given (exit 3)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(message, "force")
 
 
 @dataclass(frozen=True)
@@ -118,13 +124,13 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
     scenario, _, _ = plan_from_result_data(data, str(result_path))
     origin = origin if origin is not None else scenario.origin
     if origin is None:
-        raise ValueError(f"{result_path}: the scenario has no [origin]; give --origin LAT,LON,ALT")
-    check_origin(origin, "--origin" if origin is not scenario.origin else "scenario origin")
+        raise FieldError(f"{result_path}: the scenario has no [origin]; give an origin (latitude, longitude, altitude)", "origin")
+    check_origin(origin, "origin" if origin is not scenario.origin else "scenario origin")
     out = Path(out_dir)
     if not str(out_dir).strip():
-        raise ValueError("--out must not be empty")
+        raise FieldError("the output directory must not be empty", "out")
     if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} exists and is not a directory")
+        raise FieldError(f"the output directory {str(out)!r} exists and is not a directory", "out")
     # The stored status is not trusted: the paths are checked against the embedded scenario
     # with evaluate's own check (starts and goals the scenario's, the site box, obstacles,
     # ground, ceiling, separation), and the absolute paths rebuilt from it.
@@ -158,20 +164,23 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
             note = "UNSAFE: " + problems[0]
             files = _build(scenario, model, traj, origin, chosen, names, note[:200], frame)
     if problems:
-        files["MISSION_UNSAFE.txt"] = "This mission was exported with --force although:\n" + \
+        files["MISSION_UNSAFE.txt"] = "This mission was exported although it was refused (forced):\n" + \
             "\n".join(f"- {p}" for p in problems) + "\nDo not fly it as it is.\n"
     summary = _summary(data, origin, traj, safety, problems, names, frame)
     if flight is not None:
         summary["flight"] = _flight_summary(flight, names)
-    files["mission.json"] = json.dumps(summary, indent=1) + "\n"
 
     def figures(stage: Path) -> list[Path]:
         from staghunt.plots.mission import save_mission_figures
 
         return list(save_mission_figures(traj, scenario, stage))
 
-    try:  # the whole set or nothing: staged beside the target, then moved into place
-        written = write_file_set(out, files, figures if plots else None)
+    def manifest(names: list[str]) -> tuple[str, str]:
+        summary["files"] = sorted([*names, MANIFEST])  # what a later export into out replaces
+        return MANIFEST, json.dumps(summary, indent=1) + "\n"
+
+    try:  # the whole set or nothing, replacing the previous export's set: staged, then moved into place
+        written = write_file_set(out, files, figures if plots else None, previous_set(out), manifest)
     except OSError as exc:
         raise ValueError(f"cannot write to {str(out)!r}: {exc.strerror or exc}") from None
     return ExportReport(files=tuple(written), origin=origin, duration=traj.duration, stretch=traj.stretch,
@@ -180,6 +189,29 @@ def export_result(result_path: str, out_dir: str, origin: GeoOrigin | None = Non
                         safety=safety, bound=traj.bound, merged=traj.merged, flight=flight,
                         warnings=tuple(problems), seconds=time.perf_counter() - t0,
                         altitude_frame=frame, geoid_height=float(summary["origin"]["geoid_height_m"]))
+
+
+MANIFEST = "mission.json"
+"""The export's summary, written last; its ``files`` list the set (itself included)."""
+
+
+def previous_set(out: Path) -> list[str]:
+    """The files a previous export wrote into ``out``, as its :data:`MANIFEST` lists them (none
+    if there is none or it cannot be read: only what an export listed is ever replaced)."""
+    try:
+        if not stat.S_ISREG(os.stat(out / MANIFEST).st_mode):  # never open a FIFO or a device
+            return []
+        with open(out / MANIFEST, encoding="utf-8") as fh:
+            data = json.loads(fh.read(MAX_MANIFEST_BYTES))
+    except (OSError, ValueError, RecursionError):
+        return []
+    names = data.get("files") if isinstance(data, dict) else None
+    if not isinstance(names, list) or data.get("format") != "staghunt-mission/1":
+        return []
+    return [n for n in names if isinstance(n, str)]
+
+
+MAX_MANIFEST_BYTES = 16 * 2**20
 
 
 MAX_MISSION_SECONDS = 3600.0
@@ -204,7 +236,7 @@ def _check_duration(paths: np.ndarray, vehicle: Any, source: str) -> None:
 def _refused(result_path: str, problems: list[str]) -> ExportRefused:
     return ExportRefused(f"{result_path}: not exported: {problems[0]}"
                          + (f" (and {len(problems) - 1} more)" if len(problems) > 1 else "")
-                         + "; --force writes the files anyway, marked unsafe")
+                         + "; a forced export writes the files anyway, marked unsafe")
 
 
 def _build(scenario: Any, model: CostModel, traj: Trajectories, origin: GeoOrigin,

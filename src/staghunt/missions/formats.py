@@ -34,6 +34,8 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from staghunt.errors import FieldError
+
 QGC_WAYPOINT = 16
 QGC_LAND = 21
 QGC_TAKEOFF = 22
@@ -96,16 +98,20 @@ DJI_SPEED_RANGE = TARGET_LIMITS["kmz"]["speed_m_s"]
 LITCHI_SPEED_RANGE = TARGET_LIMITS["litchi"]["speed_m_s"]
 
 
-class TargetLimitError(ValueError):
-    """A mission file would break a published limit of its target (or use a frame it lacks)."""
+class TargetLimitError(FieldError):
+    """A mission file would break a published limit of its target (``field``: ``formats``) or
+    use a frame it lacks (``altitude_frame``)."""
+
+    def __init__(self, message: str, field: str = "formats") -> None:
+        super().__init__(message, field)
 
 
 def check_frame(fmt: str, frame: str) -> None:
     """Raise :class:`TargetLimitError` if ``fmt`` has no ``frame``."""
     if fmt in FRAME_SUPPORT and frame not in FRAME_SUPPORT[fmt]:
         others = ", ".join(FRAME_SUPPORT[fmt])
-        raise TargetLimitError(f"{fmt}: no --altitude-frame {frame}: {FRAME_MISSING[(fmt, frame)]}; "
-                               f"use {others}, or leave {fmt} out of --formats")
+        raise TargetLimitError(f"{fmt}: no altitude frame {frame}: {FRAME_MISSING[(fmt, frame)]}; "
+                               f"use {others}, or leave {fmt} out of the formats", "altitude_frame")
 
 
 def check_limits(fmt: str, file: str, *, waypoints: int, items: int | None = None,

@@ -1,7 +1,9 @@
-"""Solvers: every method is a function ``(scenario, settings, rng, progress) -> SolverOutput``
-registered in :data:`METHODS`."""
+"""Solvers: every method is a function ``MethodRun -> SolverOutput`` (:mod:`staghunt.solvers.base`:
+the scenario, settings, the run's one seeded generator, progress and the engine's runner and
+evaluator in one :class:`~staghunt.solvers.base.MethodRun`), registered in :data:`METHODS` with
+:func:`register`."""
 
-from staghunt.solvers import game, independent, paper, rigid, weighted  # noqa: F401  (registers the methods)  # noqa: F401  (registers the baselines)
+from staghunt.solvers import game, independent, paper, rigid, weighted  # noqa: F401  (registers the methods)
 from staghunt.solvers.base import DESCRIPTIONS, METHODS, SolverOutput, register
 
 __all__ = ["DESCRIPTIONS", "METHODS", "SolverOutput", "register"]

@@ -53,6 +53,7 @@ import numpy as np
 from staghunt.costs import CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, decode, encode
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
+from staghunt.solvers.base import RequestError, check_seed
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
@@ -88,6 +89,71 @@ class CertifyOptions:
 
 ROUNDTRIP_TOLERANCE = 1e-6
 """Metres; a larger encode/decode difference of the warm start is reported in the notes."""
+
+
+def check_search(settings: SolverSettings, certify: CertifyOptions | None = None,
+                 what: str = "solver settings") -> SolverSettings | None:
+    """The one check of solver settings and of a certificate's budget, made once per run by
+    :func:`staghunt.api.check_plan` (plan, compare, fly) and :func:`check_certify` (certify).
+    Returns the certificate searches' settings (``settings`` with the certificate's particles
+    and iterations; ``None`` without ``certify``). Raises :class:`RequestError` (field
+    ``settings`` or ``certify``), one line starting with ``what``; settings that disable the
+    certificate's search (no attraction) are refused here, before any search."""
+    try:
+        check_settings(settings, what)
+    except ValueError as exc:
+        raise RequestError(str(exc), "settings") from None
+    if certify is None:
+        return None
+    try:
+        certify.check()
+    except ValueError as exc:
+        raise RequestError(str(exc), "certify") from None
+    if settings.c1 == 0 and settings.c2 == 0 and certify.iterations > 0:
+        raise RequestError(f"{what}: c1 and c2 are both 0, so the certificate's search cannot move "
+                           "towards any better path; give c1 or c2 > 0, or skip the certificate", "certify")
+    return settings.with_(particles=certify.particles, iterations=certify.iterations)
+
+
+@dataclass(frozen=True, eq=False)
+class CertifyRequest:
+    """A certificate that :func:`check_certify` has checked: the scenario, the team plan
+    (read-only ``(N, K, 3)``), the searches' settings (the budget of ``options``, ``K``
+    waypoints), the options and the seed. :func:`certify_plan` runs it without checking again."""
+
+    scenario: Scenario
+    waypoints: np.ndarray
+    settings: SolverSettings
+    options: CertifyOptions
+    seed: int
+
+    @classmethod
+    def of_checked(cls, scenario: Scenario, waypoints: np.ndarray, search: SolverSettings,
+                   options: CertifyOptions, seed: int) -> "CertifyRequest":
+        """The request for a plan a checked run made (``search``: what :func:`check_search`
+        returned for that run); nothing is checked again."""
+        wp = np.array(waypoints, dtype=float)
+        wp.setflags(write=False)
+        return cls(scenario, wp, search.with_(waypoints=wp.shape[1]), options, int(seed))
+
+
+def check_certify(scenario: Scenario, waypoints: np.ndarray, options: CertifyOptions | None = None,
+                  seed: int = 0, settings: SolverSettings | None = None,
+                  what: str = "certificate settings") -> CertifyRequest:
+    """Every check a certificate needs, made once: the plan's shape, the seed, the settings
+    (default: the scenario's) and the budget (:func:`check_search`). Returns the
+    :class:`CertifyRequest`; raises :class:`RequestError` (``field``: ``waypoints``, ``seed``,
+    ``settings`` or ``certify``) with one line."""
+    wp = np.asarray(waypoints, dtype=float)
+    if wp.ndim != 3 or wp.shape[0] != scenario.n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
+        raise RequestError(f"waypoints must have shape (N, K, 3) with N = {scenario.n_uavs} UAVs and "
+                           f"K >= 1, got {wp.shape}", "waypoints")
+    if not np.all(np.isfinite(wp)):
+        raise RequestError("waypoints must be finite numbers", "waypoints")
+    options = options if options is not None else CertifyOptions()
+    search = check_search(settings if settings is not None else scenario.solver, options, what)
+    assert search is not None
+    return CertifyRequest.of_checked(scenario, wp, search, options, check_seed(seed))
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,8 +247,8 @@ class Certificate:
 
 
 def certify_plan(
-    scenario: Scenario,
-    waypoints: np.ndarray,
+    scenario: "Scenario | CertifyRequest",
+    waypoints: np.ndarray | None = None,
     *,
     particles: int = DEFAULT_PARTICLES,
     iterations: int = DEFAULT_ITERATIONS,
@@ -196,6 +262,10 @@ def certify_plan(
 ) -> Certificate:
     """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
 
+    ``scenario``: a :class:`Scenario` (the plan and budget are then checked here with
+    :func:`check_certify`), or a :class:`CertifyRequest` from :func:`check_certify`, run as
+    checked (``waypoints``, ``particles``, ``iterations``, ``seed``, ``epsilon`` and
+    ``settings`` are then taken from it, not from the arguments).
     ``particles``/``iterations``: budget of each UAV's search; the other swarm parameters
     (``c0``, ``damping``, ``c1``, ``c2``, ``velocity_fraction``) come from ``settings``
     (default: the scenario's). ``epsilon``: relative tolerance of the verdict.
@@ -205,29 +275,18 @@ def certify_plan(
     range (the strategy space the plan was solved in). ``workers``: UAV searches run at once
     (threads; each search has its own generator, so the certificate is the same for any
     count; ``runner`` must then be thread-safe, e.g. a compiled engine pinned to one thread).
-    Raises ``ValueError`` for unusable inputs, including
+    Raises :class:`RequestError` (a ``ValueError``) for unusable inputs, including
     settings that disable the search (no velocity, no attraction): those cannot certify.
     """
-    wp = np.asarray(waypoints, dtype=float)
-    if wp.ndim != 3 or wp.shape[0] != scenario.n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
-        raise ValueError(
-            f"waypoints must have shape (N, K, 3) with N = {scenario.n_uavs} UAVs and K >= 1, "
-            f"got {wp.shape}"
-        )
-    if not np.all(np.isfinite(wp)):
-        raise ValueError("waypoints must be finite numbers")
-    if not (isinstance(particles, int) and particles >= 1):
-        raise ValueError(f"certify particles must be an integer >= 1, got {particles!r}")
-    if not (isinstance(iterations, int) and iterations >= 0):
-        raise ValueError(f"certify iterations must be an integer >= 0, got {iterations!r}")
-    if not (isinstance(epsilon, (int, float)) and math.isfinite(epsilon) and epsilon >= 0):
-        raise ValueError(f"epsilon must be a finite number >= 0, got {epsilon!r}")
-    base = settings if settings is not None else scenario.solver
-    run_settings = base.with_(particles=particles, iterations=iterations, waypoints=wp.shape[1])
-    check_settings(run_settings, what="certificate settings")
-    if run_settings.c1 == 0 and run_settings.c2 == 0 and iterations > 0:
-        raise ValueError("certificate settings: c1 and c2 are both 0, so the search cannot move "
-                         "towards any better path; such a search certifies nothing")
+    if isinstance(scenario, CertifyRequest):
+        request = scenario
+    else:
+        if waypoints is None:
+            raise RequestError("waypoints: a plan to certify is needed", "waypoints")
+        request = check_certify(scenario, waypoints, CertifyOptions(particles, iterations, epsilon), seed, settings)
+    scenario, wp, run_settings = request.scenario, request.waypoints, request.settings
+    seed, epsilon = request.seed, request.options.epsilon
+    particles, iterations = request.options.particles, request.options.iterations
     model = CostModel.from_scenario(scenario)
     names = [u.name for u in scenario.team]
     current = evaluate(model, wp[None])

@@ -14,6 +14,7 @@ from typing import Any, Iterable
 import numpy as np
 
 from staghunt.checks import Metrics
+from staghunt.errors import FieldError
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.response import CertifyOptions
 
@@ -142,15 +143,13 @@ def parse_seeds(text: str) -> tuple[int, ...]:
     for part in text.split(","):
         match = _SEED_PART.fullmatch(part.strip())
         if match is None:
-            raise ValueError(
-                f"--seeds: expected seeds >= 0 like 1-10, 7 or 1,4,7, got {text!r}"
-            )
+            raise FieldError(f"seeds: expected seeds >= 0 like 1-10, 7 or 1,4,7, got {text!r}", "seeds")
         lo = int(match.group(1))
         hi = int(match.group(2)) if match.group(2) is not None else lo
         if lo > hi:
-            raise ValueError(f"--seeds: the range {part.strip()!r} runs backwards")
+            raise FieldError(f"seeds: the range {part.strip()!r} runs backwards", "seeds")
         if hi - lo > 100_000:
-            raise ValueError(f"--seeds: the range {part.strip()!r} is too long")
+            raise FieldError(f"seeds: the range {part.strip()!r} is too long", "seeds")
         for v in range(lo, hi + 1):
             if v not in seen:
                 seen.add(v)
@@ -164,11 +163,11 @@ def parse_methods(text: str) -> tuple[str, ...]:
 
     names = [m.strip() for m in text.split(",") if m.strip()]
     if not names:
-        raise ValueError("--methods: expected a comma-separated list of methods, got an empty value")
+        raise FieldError("methods: expected a comma-separated list of methods, got an empty value", "methods")
     out: list[str] = []
     for m in names:
         if m not in METHODS:
-            raise ValueError(f"--methods: unknown method {m!r}; choose from {', '.join(METHODS)}")
+            raise FieldError(f"methods: unknown method {m!r}; choose one of {', '.join(sorted(METHODS))}", "methods")
         if m not in out:
             out.append(m)
     return tuple(out)

@@ -25,6 +25,7 @@ from staghunt.analysis.compare.model import (
 )
 from staghunt.checks import plan_metrics
 from staghunt.costs import CostModel, evaluate
+from staghunt.errors import FieldError
 from staghunt.io.atomic import write_text_atomic
 from staghunt.scenario.model import Scenario, SolverSettings
 
@@ -70,9 +71,9 @@ def _check_stored_run(data: dict[str, Any], path: Path, expect: dict[str, Any]) 
     for key in ("method", "seed", "settings", "scenario"):
         if _json_normal(data.get(key)) != expect[key]:
             what = {"settings": "solver settings", "scenario": "scenario"}.get(key, key)
-            raise ValueError(
+            raise FieldError(
                 f"{path} was made with a different {what} from the one this comparison asks for; "
-                "use another --out directory (or delete that file to plan it again)"
+                "use another output directory (or delete that file to plan it again)", "out"
             )
 
 
@@ -80,9 +81,9 @@ def _check_stored_certificate(data: Any, path: Path, opts: CertifyOptions, seed:
     ok = isinstance(data, dict) and (data.get("particles"), data.get("iterations"), data.get("seed")) == (
         opts.particles, opts.iterations, seed)
     if not ok:
-        raise ValueError(
+        raise FieldError(
             f"{path} was made with a different certificate budget from the one this comparison asks for; "
-            "use another --out directory (or delete that file to certify again)"
+            "use another output directory (or delete that file to certify again)", "out"
         )
 
 
@@ -115,7 +116,6 @@ def run_compare(
     from staghunt.api import check_plan, plan
     from staghunt.io.result_json import read_result, settings_to_dict, write_json_atomic, write_result
     from staghunt.scenario import scenario_to_dict
-    from staghunt.solvers import METHODS
 
     methods = tuple(methods)
     seeds = tuple(int(s) for s in seeds)
@@ -123,9 +123,6 @@ def run_compare(
         raise ValueError("no methods to compare")
     if not seeds:
         raise ValueError("no seeds to run")
-    for m in methods:
-        if m not in METHODS:
-            raise ValueError(f"unknown method {m!r}; choose from {', '.join(METHODS)}")
     if len(set(methods)) != len(methods) or len(set(seeds)) != len(seeds):
         raise ValueError("methods and seeds must not repeat")
     if any(s < 0 for s in seeds):
