@@ -4,15 +4,17 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
 from staghunt.costs import Evaluator, evaluate
 from staghunt.errors import FieldError
 from staghunt.scenario.model import Scenario, SolverSettings
-from staghunt.solvers.response import Certificate
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
+
+if TYPE_CHECKING:  # response imports this module
+    from staghunt.solvers.response import Certificate
 
 
 class RequestError(FieldError):
