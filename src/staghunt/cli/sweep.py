@@ -120,19 +120,25 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         todo = pending(sweep, results)
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
-    if not args.quiet:
-        say(f"{PROG}: sweep {args.spec}: {len(sweep.tasks)} tasks, {len(sweep.tasks) - len(todo)} already "
-            f"in {out / 'results.parquet'}, {len(todo)} to run")
+    executor = None
     if todo:
         from staghunt.study.executor import ClusterError, make_executor
 
-        compile_s = warm_engine(sweep)
-        if compile_s > 1 and not args.quiet:
-            say(f"{PROG}: compiled engine ready in {compile_s:.1f} s (cached for every worker)")
-        try:
+        try:  # first: an unreachable scheduler is the only line on stderr
             executor = make_executor(args.scheduler, args.workers, args.connect_timeout)
         except ClusterError as exc:
             return error(one_line(exc))
+    if not args.quiet:
+        say(f"{PROG}: sweep {args.spec}: {len(sweep.tasks)} tasks, {len(sweep.tasks) - len(todo)} already "
+            f"in {out / 'results.parquet'}, {len(todo)} to run")
+    if executor is not None:
+        try:  # before any task: compiled once here, loaded from Numba's on-disk cache by the workers
+            compile_s = warm_engine(sweep)
+        except BaseException:
+            executor.close()
+            raise
+        if compile_s > 1 and not args.quiet:
+            say(f"{PROG}: compiled engine ready in {compile_s:.1f} s (cached for every worker)")
         progress = _Progress(args.quiet)
         try:
             if not args.quiet:
