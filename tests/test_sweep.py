@@ -84,8 +84,11 @@ def cluster_run(tmp_path_factory):
 # ------------------------------------------------------------------------------------------------
 
 
+UAV2_WEIGHTS = "uav.UAV2.weights = [[1, 1, 1, 1, 1], [2, 1, 1, 1, 1]]\n"
+
+
 def test_expand_grid_and_keys(tmp_path):
-    spec, base = load_spec(write_spec(tmp_path, extra='uav.UAV2.weights = [[1, 1, 1, 1, 1], [2, 1, 1, 1, 1]]\n'))
+    spec, base = load_spec(write_spec(tmp_path, extra=UAV2_WEIGHTS))
     sweep = expand(spec, base)
     assert len(sweep.tasks) == 2 * 2 * 2 * 2  # beta x UAV2 weights x seeds x methods
     assert len({t.key for t in sweep.tasks}) == len(sweep.tasks)
@@ -101,7 +104,7 @@ def test_expand_grid_and_keys(tmp_path):
     assert t.request.settings.waypoints == 4 and t.request.settings.particles == 10
     assert t.request.certify.particles == 6 and t.request.engine.threads == 1
     # The key is the configuration's: the same spec gives the same keys, another budget others.
-    again = expand(*load_spec(write_spec(tmp_path, name="b.toml", extra='uav.UAV2.weights = [[1, 1, 1, 1, 1], [2, 1, 1, 1, 1]]\n')))
+    again = expand(*load_spec(write_spec(tmp_path, name="b.toml", extra=UAV2_WEIGHTS)))
     assert [t.key for t in again.tasks] == [t.key for t in sweep.tasks]
     other = expand(*load_spec(write_spec(tmp_path, name="c.toml", particles=11)))
     assert not {t.key for t in other.tasks} & {t.key for t in sweep.tasks}
