@@ -8,8 +8,11 @@ cold cache compiles once, about a minute, on the first test that needs it)."""
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
+import re
 import signal
 import socket
 import subprocess
@@ -74,9 +77,10 @@ def cluster_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("sweep")
     spec = write_spec(d)
     out = d / "out"
-    t0 = time.perf_counter()
-    code = run_cli(["sweep", str(spec), "--out", str(out), "--workers", "2", "--quiet"])
-    return spec, out, code, time.perf_counter() - t0
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err):
+        code = run_cli(["sweep", str(spec), "--out", str(out), "--workers", "2"])
+    return spec, out, code, err.getvalue()
 
 
 # ------------------------------------------------------------------------------------------------
@@ -172,8 +176,13 @@ def test_schema_validates_the_example_spec(capsys):
 
 
 def test_cluster_sweep_rows(cluster_run, tmp_path):
-    spec, out, code, seconds = cluster_run
-    assert code == 0
+    spec, out, code, err = cluster_run
+    assert code == 0, err
+    assert "running on a local Dask cluster of 2 worker processes" in err
+    # Numba's on-disk cache warmed by the client: the workers load the kernels, never compile.
+    loaded = re.search(r"workers loaded the compiled engine in at most ([0-9.]+) s", err)
+    assert loaded and float(loaded.group(1)) < 5.0, err
+    assert "8 tasks finished, 0 skipped (already done), 0 failed" in err
     data = rows(out)
     sweep = expand(*load_spec(spec))
     assert sorted(data["key"]) == sorted(t.key for t in sweep.tasks)  # every task exactly once
@@ -283,7 +292,7 @@ def _exactly_once(spec: Path, out: Path) -> None:
 
 
 def test_kill_9_of_the_client_then_rerun(tmp_path):
-    spec = write_spec(tmp_path, seeds="1-6", particles=40, iterations=30)  # 24 tasks
+    spec = write_spec(tmp_path, seeds="1-4", particles=800, iterations=300)  # 16 tasks, ~0.1-0.6 s each
     out = tmp_path / "out"
     proc = _start(spec, out, workers=2)
     try:
@@ -296,18 +305,18 @@ def test_kill_9_of_the_client_then_rerun(tmp_path):
         except ProcessLookupError:
             pass
     before = pq.read_table(out / RESULTS).num_rows
-    assert 0 < before < 24
+    assert 0 < before < 16
     rerun = subprocess.run([sys.executable, "-m", "staghunt", "sweep", str(spec), "--out", str(out),
-                            "--workers", "2", "--no-figures"], env=env(), capture_output=True, text=True, timeout=120)
+                            "--workers", "1", "--no-figures"], env=env(), capture_output=True, text=True, timeout=120)
     assert rerun.returncode == 0, rerun.stderr
-    assert f"{before} already in" in rerun.stderr
+    assert f"{before} already in" in rerun.stderr and f"{16 - before} tasks finished" in rerun.stderr
     _exactly_once(spec, out)
 
 
 def test_kill_9_of_a_worker_mid_sweep(tmp_path):
     import psutil
 
-    spec = write_spec(tmp_path, seeds="1-6", particles=40, iterations=30)
+    spec = write_spec(tmp_path, seeds="1-4", particles=800, iterations=300)
     out = tmp_path / "out"
     proc = _start(spec, out, workers=2)
     try:
@@ -322,6 +331,7 @@ def test_kill_9_of_a_worker_mid_sweep(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+    print(f"sweep with a killed worker: exit {proc.returncode}")
     if proc.returncode == 3:  # the task on the killed worker was recorded as failed: rerun it
         rerun = subprocess.run([sys.executable, "-m", "staghunt", "sweep", str(spec), "--out", str(out),
                                 "--workers", "2", "--no-figures"], env=env(), capture_output=True, text=True,

@@ -107,7 +107,7 @@ class _Progress:
 def cmd_sweep(args: argparse.Namespace) -> int:
     """``staghunt sweep``: see :func:`staghunt.study.sweep.run_sweep`."""
     from staghunt.study.spec import expand, load_spec
-    from staghunt.study.sweep import open_stores, pending, run_sweep, warm_engine
+    from staghunt.study.sweep import open_stores, pending, run_sweep, warm_engine, warm_workers
 
     try:
         spec, base = load_spec(args.spec)
@@ -134,11 +134,14 @@ def cmd_sweep(args: argparse.Namespace) -> int:
     if executor is not None:
         try:  # before any task: compiled once here, loaded from Numba's on-disk cache by the workers
             compile_s = warm_engine(sweep)
+            loaded = warm_workers(sweep, executor)
         except BaseException:
             executor.close()
             raise
         if compile_s > 1 and not args.quiet:
             say(f"{PROG}: compiled engine ready in {compile_s:.1f} s (cached for every worker)")
+        if loaded and not args.quiet:
+            say(f"{PROG}: workers loaded the compiled engine in at most {max(loaded):.1f} s")
         progress = _Progress(args.quiet)
         try:
             if not args.quiet:

@@ -48,6 +48,9 @@ class Executor(Protocol):
     def map_unordered(self, fn: Callable[[T], R], tasks: Sequence[T]) -> Iterator[tuple[int, "R | TaskFailure"]]:
         ...
 
+    def warm_workers(self, fn: Callable[[], float]) -> list[float]:
+        ...
+
     def close(self) -> None:
         ...
 
@@ -62,6 +65,10 @@ class InlineExecutor:
     def map_unordered(self, fn: Callable[[T], R], tasks: Sequence[T]) -> Iterator[tuple[int, "R | TaskFailure"]]:
         for index, task in enumerate(tasks):
             yield index, fn(task)
+
+    def warm_workers(self, fn: Callable[[], float]) -> list[float]:
+        """Nothing to warm apart from this process (the caller's own warm-up)."""
+        return []
 
     def close(self) -> None:
         pass
@@ -126,6 +133,11 @@ class DaskExecutor(Generic[T, R]):
     @property
     def workers(self) -> int:
         return max(1, len(self.client.scheduler_info(n_workers=-1).get("workers", {})))
+
+    def warm_workers(self, fn: Callable[[], float]) -> list[float]:
+        """Run ``fn`` once on every worker now (e.g. load the compiled kernels from the on-disk
+        cache, so the first task of each worker does not pay it); returns what each returned."""
+        return [float(v) for v in self.client.run(fn).values()]
 
     def map_unordered(self, fn: Callable[[T], R], tasks: Sequence[T]) -> Iterator[tuple[int, "R | TaskFailure"]]:
         from distributed import as_completed
