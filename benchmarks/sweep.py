@@ -51,7 +51,7 @@ def main() -> None:
     from staghunt.study.sweep import run_sweep, warm_engine, warm_workers
 
     budget = (dict(seeds="1-4", particles=10, iterations=5, cert_particles=6, cert_iterations=2) if args.quick
-              else dict(seeds="1-20", particles=300, iterations=150, cert_particles=150, cert_iterations=60))
+              else dict(seeds="1-20", particles=600, iterations=300, cert_particles=200, cert_iterations=100))
     with tempfile.TemporaryDirectory() as tmp:
         spec_path = Path(tmp) / "bench.toml"
         spec_path.write_text(SPEC.format(**budget))
