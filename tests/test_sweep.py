@@ -352,3 +352,26 @@ def test_pareto_front():
 
     pts = np.array([[1, 5], [2, 2], [3, 3], [5, 1], [2, 2], [np.inf, 0], [0.5, 9]])
     assert pareto_front(pts).tolist() == [True, True, False, True, True, False, True]
+
+
+# ------------------------------------------------------------------------------------------------
+# The store
+# ------------------------------------------------------------------------------------------------
+
+
+def test_store_drops_temporary_parts_and_compacts_duplicate_keys(tmp_path):
+    import pyarrow as pa
+
+    from staghunt.study.store import ResultStore
+
+    schema = pa.schema([("key", pa.string()), ("J", pa.list_(pa.float64()))])
+    store = ResultStore(tmp_path / "r.parquet", schema).open()
+    store.append([{"key": "a", "J": [1.0, 2.0]}, {"key": "b", "J": [3.0]}])
+    store.append([{"key": "a", "J": [9.0]}, {"key": "c", "J": None}])  # "a" twice: a second client
+    (store.path / ".part-0-0-0.parquet.tmp").write_bytes(b"PAR1 half a part")  # a killed writer
+    assert pq.read_table(store.path).num_rows == 4  # readers skip the hidden temporary part
+    store = ResultStore(tmp_path / "r.parquet", schema).open()
+    assert not list(store.path.glob(".*.tmp")) and len(store.parts()) == 1
+    data = pq.read_table(store.path).to_pydict()
+    assert data == {"key": ["a", "b", "c"], "J": [[1.0, 2.0], [3.0], None]}  # the first row of "a" kept
+    assert store.keys() == {"a", "b", "c"}
