@@ -132,7 +132,11 @@ class DaskExecutor(Generic[T, R]):
 
     @property
     def workers(self) -> int:
-        return max(1, len(self.client.scheduler_info(n_workers=-1).get("workers", {})))
+        try:  # distributed >= 2025.1 lists only the first few workers unless told otherwise
+            info = self.client.scheduler_info(n_workers=-1)
+        except TypeError:
+            info = self.client.scheduler_info()
+        return max(1, len(info.get("workers", {})))
 
     def warm_workers(self, fn: Callable[[], float]) -> list[float]:
         """Run ``fn`` once on every worker now (e.g. load the compiled kernels from the on-disk
