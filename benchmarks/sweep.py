@@ -37,6 +37,14 @@ beta = [0.5, 2]
 """
 
 
+def concurrency(out: Path, elapsed: float) -> tuple[float, float]:
+    """(mean task wall time, sum of task wall times / elapsed): how many tasks ran at once."""
+    import pyarrow.parquet as pq
+
+    times = pq.read_table(out / "results.parquet", columns=["task_time_s"]).column("task_time_s").to_pylist()
+    return sum(times) / len(times), sum(times) / elapsed
+
+
 def load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -61,8 +69,9 @@ def main() -> None:
         out: dict[str, object] = {"tasks": len(sweep.tasks), "budget": budget, "load_before": load()}
         print(f"load average before: {out['load_before']}")
         s1 = run_sweep(sweep, Path(tmp) / "w1", InlineExecutor())
+        mean1, conc1 = concurrency(Path(tmp) / "w1", s1.elapsed_s)
         print(f"--workers 1: {s1.done} done, {s1.failed} failed in {s1.elapsed_s:.1f} s "
-              f"({s1.throughput * 60:.1f} tasks/min); load {load()}")
+              f"({s1.throughput * 60:.1f} tasks/min; {mean1:.2f} s per task, {conc1:.2f} at once); load {load()}")
         t0 = time.perf_counter()
         with DaskExecutor(workers=2) as ex:
             loaded = warm_workers(sweep, ex)
@@ -70,12 +79,15 @@ def main() -> None:
             print(f"cluster up and kernels loaded on every worker in {startup:.1f} s "
                   f"(loading took at most {max(loaded):.2f} s per worker)")
             s2 = run_sweep(sweep, Path(tmp) / "w2", ex)
+        mean2, conc2 = concurrency(Path(tmp) / "w2", s2.elapsed_s)
         print(f"--workers 2: {s2.done} done, {s2.failed} failed in {s2.elapsed_s:.1f} s "
-              f"({s2.throughput * 60:.1f} tasks/min; cluster start-up {startup:.1f} s apart); load {load()}")
+              f"({s2.throughput * 60:.1f} tasks/min; {mean2:.2f} s per task, {conc2:.2f} at once; "
+              f"cluster start-up {startup:.1f} s apart); load {load()}")
         ratio = s2.throughput / s1.throughput if s1.throughput else float("nan")
         with_startup = s1.elapsed_s / (s2.elapsed_s + startup)
         print(f"throughput ratio 2 workers / 1 worker: {ratio:.2f}x (target >= 1.7x); "
               f"{with_startup:.2f}x counting the cluster's start-up")
+        out.update(task1_s=mean1, task2_s=mean2, at_once1=conc1, at_once2=conc2)
         out.update(workers1_s=s1.elapsed_s, workers2_s=s2.elapsed_s, startup_s=startup, ratio=ratio,
                    ratio_with_startup=with_startup, load_after=load())
         if args.json:
