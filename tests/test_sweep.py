@@ -231,6 +231,12 @@ def test_rerun_adds_no_rows_and_more_seeds_run_only_the_new_tasks(cluster_run, t
     data = rows(work)
     assert len(data["key"]) == 12 and len(set(data["key"])) == 12
     assert sorted(data["seed"]).count(3) == 4
+    for png in work.glob("*.png"):
+        png.unlink()
+    assert run_cli(["sweep", str(more), "--out", str(work), "--figures-only"]) == 0  # from the table alone
+    assert (work / "beta_tradeoff.png").read_bytes()[:4] == b"\x89PNG" and (work / "convergence.png").is_file()
+    assert run_cli(["sweep", str(more), "--out", str(tmp_path / "empty"), "--figures-only"]) == 2
+    assert "no results (run the sweep first)" in capsys.readouterr().err
 
 
 def test_failed_tasks_are_recorded_and_run_again(tmp_path):
