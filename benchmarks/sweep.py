@@ -39,12 +39,14 @@ beta = [0.5, 2]
 """
 
 
-def concurrency(out: Path, elapsed: float) -> tuple[float, float]:
-    """(mean task wall time, sum of task wall times / elapsed): how many tasks ran at once."""
+def concurrency(out: Path, elapsed: float) -> tuple[float, float, float]:
+    """(mean task wall time, sum of task wall times / elapsed: how many tasks ran at once, sum of
+    the tasks' CPU times / elapsed: how many cores the tasks actually got)."""
     import pyarrow.parquet as pq
 
-    times = pq.read_table(out / "results.parquet", columns=["task_time_s"]).column("task_time_s").to_pylist()
-    return sum(times) / len(times), sum(times) / elapsed
+    t = pq.read_table(out / "results.parquet", columns=["task_time_s", "cpu_time_s"]).to_pydict()
+    wall, cpu = t["task_time_s"], t["cpu_time_s"]
+    return sum(wall) / len(wall), sum(wall) / elapsed, sum(cpu) / elapsed
 
 
 def load() -> str:
@@ -75,9 +77,10 @@ def main() -> None:
             before = load()
             print(f"round {r + 1}: load average before: {before}")
             s1 = run_sweep(sweep, Path(tmp) / f"w1-{r}", InlineExecutor())
-            mean1, conc1 = concurrency(Path(tmp) / f"w1-{r}", s1.elapsed_s)
+            mean1, conc1, cores1 = concurrency(Path(tmp) / f"w1-{r}", s1.elapsed_s)
             print(f"  --workers 1: {s1.done} done, {s1.failed} failed in {s1.elapsed_s:.1f} s "
-                  f"({s1.throughput * 60:.1f} tasks/min; {mean1:.2f} s per task, {conc1:.2f} at once); load {load()}")
+                  f"({s1.throughput * 60:.1f} tasks/min; {mean1:.2f} s per task, {conc1:.2f} at once, "
+                  f"{cores1:.2f} cores used); load {load()}")
             t0 = time.perf_counter()
             with DaskExecutor(workers=2) as ex:
                 loaded = warm_workers(sweep, ex)
@@ -85,17 +88,18 @@ def main() -> None:
                 print(f"  cluster up and kernels loaded on every worker in {startup:.1f} s "
                       f"(loading took at most {max(loaded):.2f} s per worker)")
                 s2 = run_sweep(sweep, Path(tmp) / f"w2-{r}", ex)
-            mean2, conc2 = concurrency(Path(tmp) / f"w2-{r}", s2.elapsed_s)
+            mean2, conc2, cores2 = concurrency(Path(tmp) / f"w2-{r}", s2.elapsed_s)
             print(f"  --workers 2: {s2.done} done, {s2.failed} failed in {s2.elapsed_s:.1f} s "
-                  f"({s2.throughput * 60:.1f} tasks/min; {mean2:.2f} s per task, {conc2:.2f} at once; "
-                  f"cluster start-up {startup:.1f} s apart); load {load()}")
+                  f"({s2.throughput * 60:.1f} tasks/min; {mean2:.2f} s per task, {conc2:.2f} at once, "
+                  f"{cores2:.2f} cores used; cluster start-up {startup:.1f} s apart); load {load()}")
             ratio = s2.throughput / s1.throughput if s1.throughput else float("nan")
             with_startup = s1.elapsed_s / (s2.elapsed_s + startup)
             print(f"  throughput ratio 2 workers / 1 worker: {ratio:.2f}x (target >= 1.7x); "
                   f"{with_startup:.2f}x counting the cluster's start-up")
             rounds.append(dict(load_before=before, load_after=load(), workers1_s=s1.elapsed_s,
                                workers2_s=s2.elapsed_s, task1_s=mean1, task2_s=mean2, at_once1=conc1,
-                               at_once2=conc2, startup_s=startup, ratio=ratio, ratio_with_startup=with_startup))
+                               at_once2=conc2, cores1=cores1, cores2=cores2, startup_s=startup, ratio=ratio,
+                               ratio_with_startup=with_startup))
     ratios = sorted(float(r["ratio"]) for r in rounds)  # type: ignore[arg-type]
     print(f"ratio per round: {', '.join(f'{x:.2f}x' for x in ratios)}; median {statistics.median(ratios):.2f}x")
     if args.json:

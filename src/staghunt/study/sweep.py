@@ -43,7 +43,7 @@ def sweep_schema_columns(sweep: Sweep) -> pa.Schema:
                ("J", _LIST), ("J_s", _LIST), ("J_f", _LIST), ("max_relative_gap", pa.float64()),
                ("equilibrium", pa.bool_()), ("payoff_dominant", pa.bool_()), ("evaluations", pa.int64()),
                ("wall_time_s", pa.float64()), ("certificate_time_s", pa.float64()),
-               ("compile_time_s", pa.float64()), ("task_time_s", pa.float64()),
+               ("compile_time_s", pa.float64()), ("task_time_s", pa.float64()), ("cpu_time_s", pa.float64()),
                ("history", pa.list_(_LIST)), ("worker", pa.string()), ("version", pa.string())]
     return pa.schema([pa.field(n, t) for n, t in fields])
 

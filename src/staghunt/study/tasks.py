@@ -104,7 +104,7 @@ def run_plan_task(task: PlanTask, progress: "Progress | None" = None,
     executors only)."""
     import staghunt.api as api  # looked up at call time (tests replace api.plan)
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()  # one engine thread: the calling thread's CPU time
     base = {"worker": worker_name()}
     try:
         if task.waypoints is not None:
@@ -117,7 +117,8 @@ def run_plan_task(task: PlanTask, progress: "Progress | None" = None,
             return TaskOutcome(task.key, {**base, "status": "certified", "task_time_s": time.perf_counter() - t0},
                                certificate=cert)
         result = api.plan(task.request, progress=progress, certify_progress=certify_progress)
-        row = {**base, **summary_row(result), "task_time_s": time.perf_counter() - t0}
+        row = {**base, **summary_row(result), "task_time_s": time.perf_counter() - t0,
+               "cpu_time_s": time.thread_time() - cpu0}
         return TaskOutcome(task.key, row, result if task.keep_result else None)
     except (KeyboardInterrupt, SystemExit):
         raise
