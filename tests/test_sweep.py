@@ -279,7 +279,7 @@ def test_unreachable_scheduler(tmp_path, capsys):
 
 def _start(spec: Path, out: Path, workers: int) -> subprocess.Popen:
     return subprocess.Popen([sys.executable, "-m", "staghunt", "sweep", str(spec), "--out", str(out),
-                             "--workers", str(workers), "--no-figures", "--quiet"],
+                             "--workers", str(workers), "--no-figures", "--quiet", "--flush-every", "0"],
                             env=env(), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True)
 
 

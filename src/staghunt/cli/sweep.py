@@ -31,9 +31,20 @@ def _positive_seconds(text: str) -> float:
     return value
 
 
+def _seconds_at_least_0(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
+    if not 0 <= value <= 3600:
+        raise argparse.ArgumentTypeError(f"must lie in [0, 3600] seconds, got {text}")
+    return value
+
+
 def add_commands(sub: Any) -> None:
     """Register ``sweep`` on ``sub`` (from ``add_subparsers``)."""
     from staghunt.study.executor import DEFAULT_CONNECT_TIMEOUT_S
+    from staghunt.study.sweep import FLUSH_EVERY_S
 
     p = command(
         sub, "sweep", cmd_sweep, "run a grid of plans (scenarios x overrides x methods x seeds) on Dask",
@@ -55,6 +66,9 @@ def add_commands(sub: Any) -> None:
                    help="worker processes of the local cluster (default: one per core; 1 runs in this process)")
     p.add_argument("--connect-timeout", type=_positive_seconds, metavar="S", default=DEFAULT_CONNECT_TIMEOUT_S,
                    help=f"seconds to reach --scheduler before giving up (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
+    p.add_argument("--flush-every", type=_seconds_at_least_0, metavar="S", default=FLUSH_EVERY_S,
+                   help=f"write finished rows at most S seconds after their task (0: after every task; "
+                   f"default: {FLUSH_EVERY_S:g})")
     p.add_argument("--figures-only", action="store_true", help="only draw the figures from DIR/results.parquet")
     p.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     add_quiet_option(p)
@@ -147,7 +161,7 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             if not args.quiet:
                 say(f"{PROG}: running on {executor.description} ({executor.workers} worker"
                     f"{'s' if executor.workers != 1 else ''})")
-            summary = run_sweep(sweep, out, executor, progress.listener)
+            summary = run_sweep(sweep, out, executor, progress.listener, flush_every_s=args.flush_every)
         except KeyboardInterrupt:
             progress.close()
             say(f"{PROG}: interrupted: finished tasks are kept in {out / 'results.parquet'}; "

@@ -123,10 +123,11 @@ def warm_workers(sweep: Sweep, executor: Any) -> list[float]:
 
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike[str], executor: Any = None,
               listener: SweepListener | None = None,
-              task_fn: Callable[[PlanTask], TaskOutcome] = run_plan_task) -> SweepSummary:
+              task_fn: Callable[[PlanTask], TaskOutcome] = run_plan_task,
+              flush_every_s: float = FLUSH_EVERY_S) -> SweepSummary:
     """Run the tasks of ``sweep`` not yet in ``out_dir/results.parquet`` on ``executor``
-    (default: in this process); rows are written as tasks complete (at most
-    :data:`FLUSH_EVERY_S` late) and at the end, also on ``KeyboardInterrupt`` (re-raised)."""
+    (default: in this process); rows are written as tasks complete (at most ``flush_every_s``
+    late; ``0``: a part per task) and at the end, also on ``KeyboardInterrupt`` (re-raised)."""
     from staghunt._version import __version__
 
     executor = executor if executor is not None else InlineExecutor()
@@ -164,7 +165,7 @@ def run_sweep(sweep: Sweep, out_dir: str | os.PathLike[str], executor: Any = Non
                 ok_rows.append(row)
                 summary.done += 1
             summary.elapsed_s = time.perf_counter() - t0
-            if time.perf_counter() - last >= FLUSH_EVERY_S:
+            if time.perf_counter() - last >= flush_every_s:
                 flush()
             listener.task_finished(summary, row)
     except KeyboardInterrupt:
