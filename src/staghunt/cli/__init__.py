@@ -2,7 +2,8 @@
 
 One module per group of commands: :mod:`~staghunt.cli.scenarios` (scenarios, show, methods,
 schema), :mod:`~staghunt.cli.plan` (plan, evaluate), :mod:`~staghunt.cli.analysis` (compare,
-certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly);
+certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly),
+:mod:`~staghunt.cli.sweep` (sweep);
 :mod:`~staghunt.cli.common` holds what they share (exit codes, option blocks, error lines, the
 terminal status line).
 
@@ -30,7 +31,7 @@ import sys
 import warnings
 from typing import Sequence
 
-from staghunt.cli import analysis, fly, missions, plan, scenarios
+from staghunt.cli import analysis, fly, missions, plan, scenarios, sweep
 from staghunt.cli.common import EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line, say
 from staghunt.inputs import clip
 from staghunt.cli.plan import ProgressReporter, summary_table
@@ -55,6 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     analysis.add_commands(sub)
     missions.add_commands(sub)
     fly.add_commands(sub)
+    sweep.add_commands(sub)
     return parser
 
 

@@ -55,6 +55,10 @@ def add_commands(subparsers: Any) -> None:
     add_run_options(p, "runs/<scenario>-compare")
     add_certificate_options(p, "certify-", skip="the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
+    p.add_argument("--workers", type=int_at_least(1), metavar="N",
+                   help="run the runs on a local Dask cluster of N worker processes, one thread each "
+                   "(default: one run after the other in this process; see 'staghunt sweep')")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="run the runs on the Dask scheduler at ADDRESS")
 
     p = command(
         subparsers, "certify", cmd_certify, "equilibrium certificate of a plan: each UAV's Nash gap",
@@ -167,11 +171,25 @@ def cmd_compare(args: argparse.Namespace) -> int:
             f"iterations, K = {settings.waypoints}; {cert}; writing to {out}",
             file=sys.stderr,
         )
+    from staghunt.study.executor import make_executor
+
+    try:
+        executor = make_executor(args.scheduler, args.workers if args.workers is not None else 1)
+    except ValueError as exc:  # ClusterError: the scheduler cannot be reached
+        return error(one_line(exc))
+    if not executor.local:  # compile once here, into the on-disk cache the workers load
+        from staghunt.engine import get_engine
+
+        prepare = getattr(get_engine(args.engine, 1), "prepare", None)
+        if callable(prepare):
+            prepare()
     listener = _CompareProgress(sys.stderr, args.quiet)
     try:
         report = run_compare(scenario, out, methods=methods, seeds=seeds, settings=settings,
-                             certify=certify, listener=listener, plan_options=engine_kwargs(args))
+                             certify=certify, listener=listener, plan_options=engine_kwargs(args),
+                             executor=executor)
     except KeyboardInterrupt:
+        executor.close()
         listener.close()
         done = _count_done(out, methods, seeds, certify is not None)
         print(
@@ -181,8 +199,10 @@ def cmd_compare(args: argparse.Namespace) -> int:
         )
         return EXIT_INTERRUPTED
     except (ValueError, OSError) as exc:
+        executor.close()
         listener.close()
         return error(one_line(exc, "compare"))
+    executor.close()
     listener.close()
     print(format_report(report))
     written = [out / "compare.json", out / "compare.csv"]

@@ -18,8 +18,11 @@ def add_commands(sub: Any) -> None:
                 description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
                 "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
                 "TOML support at it (see docs/scenario-format.md).")
-    p.add_argument("--events", action="store_true",
-                   help="the schema of an events file ('staghunt fly --events FILE') instead")
+    kind = p.add_mutually_exclusive_group()
+    kind.add_argument("--events", action="store_true",
+                      help="the schema of an events file ('staghunt fly --events FILE') instead")
+    kind.add_argument("--sweep", action="store_true",
+                      help="the schema of a sweep spec ('staghunt sweep SPEC.toml') instead")
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
@@ -57,6 +60,11 @@ def cmd_methods(args: argparse.Namespace) -> int:
 def cmd_schema(args: argparse.Namespace) -> int:
     from staghunt.scenario.schema import EventsFile, json_schema
 
-    schema = json_schema(EventsFile) if args.events else json_schema()
+    if args.sweep:
+        from staghunt.study.spec import sweep_schema
+
+        schema = sweep_schema()
+    else:
+        schema = json_schema(EventsFile) if args.events else json_schema()
     print(json.dumps(schema, indent=2, ensure_ascii=False))
     return EXIT_OK

@@ -91,11 +91,13 @@ def _show(value: object) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _table_at(loc: tuple[int | str, ...]) -> type[BaseModel] | None:
-    """The table model that holds the key at ``loc`` (``None`` if there is none)."""
-    model: Any = ScenarioFile
+def _table_at(loc: tuple[int | str, ...], root: type[BaseModel] = ScenarioFile) -> type[BaseModel] | None:
+    """The table model (under ``root``) that holds the key at ``loc`` (``None`` if there is none)."""
+    model: Any = root
     for part in loc[:-1]:
         if isinstance(part, int):
+            continue
+        if part not in model.model_fields:  # a key of a dict of tables
             continue
         model = _model_in(model.model_fields[part].annotation)
         if model is None:
@@ -113,9 +115,9 @@ def _model_in(annotation: Any) -> type[BaseModel] | None:
     return None
 
 
-def _field_bounds(loc: tuple[int | str, ...]) -> dict[str, float]:
+def _field_bounds(loc: tuple[int | str, ...], root: type[BaseModel] = ScenarioFile) -> dict[str, float]:
     """The ``ge``/``gt``/``le``/``lt`` bounds declared on the field at ``loc``."""
-    table = _table_at(tuple(p for p in loc if isinstance(p, str)))
+    table = _table_at(tuple(p for p in loc if isinstance(p, str)), root)
     name = next((p for p in reversed(loc) if isinstance(p, str)), None)
     if table is None or name not in table.model_fields:
         return {}
@@ -146,8 +148,8 @@ def _walk(annotation: Any) -> list[Any]:
     return out
 
 
-def _range(value: Any, loc: tuple[int | str, ...]) -> str:
-    b = _field_bounds(loc)
+def _range(value: Any, loc: tuple[int | str, ...], root: type[BaseModel] = ScenarioFile) -> str:
+    b = _field_bounds(loc, root)
     lo = ("(", b["gt"]) if "gt" in b else ("[", b["ge"]) if "ge" in b else None
     hi = (")", b["lt"]) if "lt" in b else ("]", b["le"]) if "le" in b else None
     got = f"got {_fmt(value)}"
@@ -160,8 +162,8 @@ def _range(value: Any, loc: tuple[int | str, ...]) -> str:
     return f"must be {'<' if hi[0] == ')' else '<='} {_fmt(hi[1])}, {got}"
 
 
-def _message(err: Any) -> tuple[str, str]:
-    """(key path, detail) of one pydantic error."""
+def _message(err: Any, root: type[BaseModel] = ScenarioFile) -> tuple[str, str]:
+    """(key path, detail) of one pydantic error against the model ``root``."""
     loc: tuple[int | str, ...] = tuple(err["loc"])
     kind, value, ctx = err["type"], err.get("input"), err.get("ctx") or {}
     name = next((p for p in reversed(loc) if isinstance(p, str)), "")
@@ -169,7 +171,7 @@ def _message(err: Any) -> tuple[str, str]:
     if kind == "staghunt":
         return key_path((*loc, ctx["key"])), str(ctx["detail"])
     if kind == "extra_forbidden":
-        table = _table_at(loc)
+        table = _table_at(loc, root)
         allowed = ", ".join(table.model_fields) if table is not None else ""
         return key_path(loc), f"unknown key; allowed keys here: {allowed}"
     if kind in _MESSAGES:
@@ -183,7 +185,7 @@ def _message(err: Any) -> tuple[str, str]:
         expect = f"{what} ({n} numbers)" if what else f"{'at least' if kind == 'too_short' else 'at most'} {n} entries"
         return key_path(loc), f"expected {expect}, got {len(value) if hasattr(value, '__len__') else value} values"
     if kind in ("greater_than", "greater_than_equal", "less_than", "less_than_equal"):
-        return key_path(loc), _range(value, loc)
+        return key_path(loc), _range(value, loc, root)
     return key_path(loc), f"{err['msg']}, {got}"  # not expected: pydantic's own words
 
 
@@ -199,5 +201,5 @@ def validate(data: Any, model: type[BaseModel] = ScenarioFile) -> Any:
         errors = exc.errors(include_url=False)
         # An unknown key first: a misspelt key also shows as a missing one.
         first = next((e for e in errors if e["type"] == "extra_forbidden"), errors[0])
-        key, detail = _message(first)
+        key, detail = _message(first, model)
         raise ScenarioError(detail, key or None) from None

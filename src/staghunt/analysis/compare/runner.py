@@ -102,20 +102,27 @@ def run_compare(
     certify: CertifyOptions | None = DEFAULT_CERTIFY,
     listener: CompareListener | None = None,
     plan_options: dict[str, Any] | None = None,
+    executor: Any = None,
 ) -> CompareReport:
     """Plan ``scenario`` with every method and seed, certify each plan, and aggregate.
 
     ``settings``: the budget of every method (default: the scenario's). ``certify``: the
     certificate's budget and tolerance, ``None`` to skip certificates. ``plan_options``: the
     ``engine`` and ``threads`` of :func:`staghunt.plan`, which also run the certificates'
-    searches. Files go to ``out_dir`` (see
-    the module docstring); a ``KeyboardInterrupt`` leaves every finished run on disk and the
-    aggregate files consistent with them. Raises ``ValueError`` for bad input.
+    searches. ``executor``: where the runs go (:mod:`staghunt.study.executor`; default: in this
+    process, one after the other): every run is one task of
+    :func:`staghunt.study.tasks.run_plan_task`, the task function of ``staghunt sweep``. Files go
+    to ``out_dir`` (see the module docstring) as each run completes; runs are reported to
+    ``listener`` and aggregated in (seed, method) order. A ``KeyboardInterrupt`` leaves every
+    finished run on disk and the aggregate files consistent with them. Raises ``ValueError``
+    for bad input.
     """
-    from staghunt.analysis.certify import certificate_to_dict, certify_plan
-    from staghunt.api import check_plan, plan
-    from staghunt.io.result_json import read_result, settings_to_dict, write_json_atomic, write_result
+    from staghunt.analysis.certify import certificate_to_dict, plan_from_result_data
+    from staghunt.api import check_plan
+    from staghunt.io.result_json import load_json_strict, read_result, settings_to_dict, write_json_atomic, write_result
     from staghunt.scenario import scenario_to_dict
+    from staghunt.study.executor import InlineExecutor, TaskFailure, run_tasks
+    from staghunt.study.tasks import PlanTask, TaskOutcome, run_plan_task
 
     methods = tuple(methods)
     seeds = tuple(int(s) for s in seeds)
@@ -130,9 +137,12 @@ def run_compare(
     settings = settings if settings is not None else scenario.solver
     if certify is not None:
         certify.check()
+    executor = executor if executor is not None else InlineExecutor()
     engine_options = {k: v for k, v in (plan_options or {}).items() if k in ("engine", "threads")}
+    if not executor.local:  # one thread per task: the cluster's workers are the parallelism
+        engine_options["threads"] = 1
     # Every method's run checked once (settings, engine, memory); each seed reuses the check.
-    requests = {m: check_plan(scenario, m, seeds[0], settings, **engine_options) for m in methods}
+    requests = {m: check_plan(scenario, m, seeds[0], settings, certify=certify, **engine_options) for m in methods}
     listener = listener or CompareListener()
     out = Path(out_dir)
     runs_dir = out / "runs"
@@ -153,34 +163,78 @@ def run_compare(
         if rf.exists():
             _check_stored_run(read_result(rf), rf, {**expect_common, "method": m, "seed": s})
         if certify is not None and cf.exists():
-            from staghunt.io.result_json import load_json_strict
-
             _check_stored_certificate(load_json_strict(cf), cf, certify, s)
+
+    # One task per run not on disk (plan + certificate), or per plan on disk not yet certified.
+    tasks: list[PlanTask] = []
+    job_of: dict[str, int] = {}
+    resumed: dict[int, bool] = {}
+    for index, (m, s) in enumerate(jobs):
+        rf, cf = run_file(out, m, s), certificate_file(out, m, s)
+        key = f"{m}-s{s}"
+        if not rf.exists():
+            tasks.append(PlanTask(requests[m].with_seed(s), key, keep_result=True))
+        elif certify is not None and not cf.exists():
+            _, wp, _ = plan_from_result_data(read_result(rf), str(rf))
+            tasks.append(PlanTask(requests[m].with_seed(s), key, waypoints=wp))
+        else:
+            resumed[index] = True
+            continue
+        job_of[key] = index
+        resumed[index] = False
+
+    def local_task(task: PlanTask) -> TaskOutcome:
+        """The task in this process, with the listener's progress hooks."""
+        index = job_of[task.key] + 1
+        m, s = task.request.method, task.request.seed
+        started = []
+
+        def certify_progress(uav: int, n_uavs: int, iteration: int, total: int) -> None:
+            if not started:
+                started.append(True)
+                listener.certify_started(index, len(jobs), m, s)
+            listener.certify_progress(uav, n_uavs, iteration, total)
+
+        if task.waypoints is None:
+            listener.run_started(index, len(jobs), m, s)
+        return run_plan_task(task, progress=listener.plan_progress, certify_progress=certify_progress)
+
+    def store(task: PlanTask, outcome: "TaskOutcome | TaskFailure") -> None:
+        m, s = task.request.method, task.request.seed
+        if isinstance(outcome, TaskFailure) or not outcome.ok:
+            why = outcome.message if isinstance(outcome, TaskFailure) else outcome.error
+            raise RuntimeError(f"run {m} seed {s} failed: {why}")
+        rf, cf = run_file(out, m, s), certificate_file(out, m, s)
+        cert = outcome.certificate
+        if outcome.result is not None:
+            write_result(outcome.result, rf)
+            cert = outcome.result.certificate
+        if certify is not None and cert is not None:
+            write_json_atomic(certificate_to_dict(cert), cf)
 
     records: list[RunRecord] = []
     report = CompareReport(scenario, methods, seeds, settings, certify, ())
-    for index, (m, s) in enumerate(jobs, start=1):
-        rf, cf = run_file(out, m, s), certificate_file(out, m, s)
-        resumed = rf.exists() and (certify is None or cf.exists())
-        if not rf.exists():
-            listener.run_started(index, len(jobs), m, s)
-            result = plan(requests[m].with_seed(s), progress=listener.plan_progress)
-            write_result(result, rf)
-        if certify is not None and not cf.exists():
-            listener.certify_started(index, len(jobs), m, s)
-            data = read_result(rf)
-            from staghunt.analysis.certify import plan_from_result_data
+    landed = {i for i, r in resumed.items() if r}
+    reported = 0
 
-            _, wp, _ = plan_from_result_data(data, str(rf))
-            cert = certify_plan(scenario, wp, particles=certify.particles,
-                                iterations=certify.iterations, seed=s, epsilon=certify.epsilon,
-                                settings=settings, progress=listener.certify_progress,
-                                **engine_options)
-            write_json_atomic(certificate_to_dict(cert), cf)
-        record = record_from_files(scenario, model, rf, cf if certify is not None else None)
-        records.append(record)
-        report = aggregate(scenario, methods, seeds, settings, certify, records)
-        write_json_atomic(report.data, out / "compare.json")
-        write_text_atomic(csv_text(report), out / "compare.csv")
-        listener.run_finished(index, len(jobs), record, resumed)
+    def report_ready() -> None:
+        """Report and aggregate, in job order, every run on disk not reported yet."""
+        nonlocal reported, report
+        while reported < len(jobs) and reported in landed:
+            m, s = jobs[reported]
+            rf, cf = run_file(out, m, s), certificate_file(out, m, s)
+            record = record_from_files(scenario, model, rf, cf if certify is not None else None)
+            records.append(record)
+            report = aggregate(scenario, methods, seeds, settings, certify, records)
+            write_json_atomic(report.data, out / "compare.json")
+            write_text_atomic(csv_text(report), out / "compare.csv")
+            reported += 1
+            listener.run_finished(reported, len(jobs), record, resumed[reported - 1])
+
+    report_ready()
+    fn = local_task if executor.local else run_plan_task
+    for i, outcome in run_tasks(fn, tasks, executor):
+        store(tasks[i], outcome)
+        landed.add(job_of[tasks[i].key])
+        report_ready()
     return report
