@@ -13,7 +13,7 @@ from staghunt.analysis.certify import (
     DEFAULT_EPSILON,
     certificate_table,
     certificate_to_dict,
-    certify_plan,
+    certify_on_engine,
     certify_result_file,
 )
 from staghunt.costs import CostModel, evaluate
@@ -65,7 +65,7 @@ def test_lone_uav_at_its_optimum_has_zero_gap(alone):
     wp = _straight(50.0)[None]
     J = evaluate(CostModel.from_scenario(alone), wp[None]).total[0, 0]
     assert J == pytest.approx(80.0)  # w1 * |G - S|: no turn, no climb, at h_ref
-    cert = certify_plan(alone, wp, particles=40, iterations=30, seed=1)
+    cert = certify_on_engine(alone, wp, particles=40, iterations=30, seed=1)
     u = cert.uavs[0]
     assert u.current == J
     assert 0.0 <= u.gap <= 1e-9 * J
@@ -78,7 +78,7 @@ def test_lone_uav_at_its_optimum_has_zero_gap(alone):
 def test_perturbed_lone_uav_has_a_large_gap(alone):
     wp = _straight(50.0)
     wp[1, 1] += 15.0  # a 15 m detour at waypoint 2
-    cert = certify_plan(alone, wp[None], particles=40, iterations=30, seed=1)
+    cert = certify_on_engine(alone, wp[None], particles=40, iterations=30, seed=1)
     u = cert.uavs[0]
     assert u.current > 200.0
     assert u.best < 0.6 * u.current  # the search finds most of the way back to 80
@@ -95,17 +95,17 @@ def test_gap_is_never_negative_even_without_iterations(alone):
     wp = _straight(50.0)
     wp[2, 2] = 31.0
     for iterations in (0, 1):
-        cert = certify_plan(alone, wp[None], particles=3, iterations=iterations, seed=5)
+        cert = certify_on_engine(alone, wp[None], particles=3, iterations=iterations, seed=5)
         assert cert.uavs[0].gap >= 0.0 and cert.uavs[0].best <= cert.uavs[0].current
 
 
 def test_team_equilibrium_and_the_uav_that_would_deviate(pair):
     wp = np.stack([_straight(40.0), _straight(60.0)])
-    cert = certify_plan(pair, wp, particles=40, iterations=30, seed=2)
+    cert = certify_on_engine(pair, wp, particles=40, iterations=30, seed=2)
     assert cert.is_equilibrium
     assert all(u.gap <= 1e-9 * u.current for u in cert.uavs)
     wp[1, 1, 1] += 10.0  # B leaves both its straight line and the formation at waypoint 2
-    cert = certify_plan(pair, wp, particles=40, iterations=30, seed=2)
+    cert = certify_on_engine(pair, wp, particles=40, iterations=30, seed=2)
     a, b = cert.uavs
     assert not cert.is_equilibrium
     assert cert.worst == 1 and "B would deviate" in cert.verdict
@@ -116,14 +116,14 @@ def test_team_equilibrium_and_the_uav_that_would_deviate(pair):
 def test_certificate_is_seeded(pair):
     wp = np.stack([_straight(40.0), _straight(60.0)])
     wp[0, 2, 0] += 6.0
-    one = certify_plan(pair, wp, particles=15, iterations=5, seed=9)
-    two = certify_plan(pair, wp, particles=15, iterations=5, seed=9)
+    one = certify_on_engine(pair, wp, particles=15, iterations=5, seed=9)
+    two = certify_on_engine(pair, wp, particles=15, iterations=5, seed=9)
     assert certificate_to_dict(one) == certificate_to_dict(two)
 
 
 def test_infeasible_plan_gets_no_certificate():
     sc = _scenario([_uav("solo", 50.0)], obstacles=[(50.0, 50.0, 4.0)])
-    cert = certify_plan(sc, _straight(50.0)[None], particles=5, iterations=2)
+    cert = certify_on_engine(sc, _straight(50.0)[None], particles=5, iterations=2)
     assert cert.status == "infeasible" and not cert.is_equilibrium
     assert math.isinf(cert.uavs[0].gap) and cert.uavs[0].best is None
     assert "infeasible plan" in cert.verdict
@@ -135,11 +135,11 @@ def test_infeasible_plan_gets_no_certificate():
 
 def test_bad_inputs_are_value_errors(alone):
     with pytest.raises(ValueError, match="shape"):
-        certify_plan(alone, np.zeros((2, K, 3)))
+        certify_on_engine(alone, np.zeros((2, K, 3)))
     with pytest.raises(ValueError, match="epsilon"):
-        certify_plan(alone, _straight(50.0)[None], epsilon=-1.0)
+        certify_on_engine(alone, _straight(50.0)[None], epsilon=-1.0)
     with pytest.raises(ValueError, match="particles"):
-        certify_plan(alone, _straight(50.0)[None], particles=0)
+        certify_on_engine(alone, _straight(50.0)[None], particles=0)
 
 
 # ------------------------------------------------------------------------------------------------

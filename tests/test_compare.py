@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import staghunt.analysis.certify
+import staghunt.study.tasks
 import staghunt.api
 from staghunt.analysis import compare as cmp
 from staghunt.analysis.compare import (
@@ -193,7 +193,7 @@ def test_resume_plans_nothing_again(done, scenario, settings, monkeypatch):
         raise AssertionError("a finished run was planned again")
 
     monkeypatch.setattr(staghunt.api, "plan", no_plan)
-    monkeypatch.setattr(staghunt.analysis.certify, "certify_plan", no_plan)
+    monkeypatch.setattr(staghunt.study.tasks, "run_plan_task", no_plan)
     report = run_compare(scenario, out, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
                          plan_options={"engine": "numpy"})
     assert report.complete

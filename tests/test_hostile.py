@@ -679,14 +679,14 @@ def test_library_certify_and_evaluate_refuse(result_data, edit, expect):
     import numpy as np
 
     import staghunt
-    from staghunt.analysis.certify import certify_plan
+    from staghunt.analysis.certify import certify_on_engine
     from staghunt.io.paths_json import evaluate_paths
 
     s = staghunt.load_scenario("scenario1")
     wp = np.array([u["waypoints"] for u in paths_of(result_data)["uavs"]], dtype=float)
     edit(wp)
     with pytest.raises(ValueError, match=expect):
-        certify_plan(s, wp, particles=4, iterations=1, engine="numpy")
+        certify_on_engine(s, wp, particles=4, iterations=1, engine="numpy")
     if "site box" in expect:
         assert evaluate_paths(s, wp)["status"] == "infeasible"
     else:

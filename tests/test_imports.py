@@ -23,11 +23,11 @@ LAYERS: list[set[str]] = [
     {"budget", "result"},
     {"io"},  # files in and out
     {"api"},  # check_plan / plan
+    {"study"},  # many plans as tasks (sweep; compare runs on it)
     {"analysis"},  # certify, compare, the paper's figures
     {"flight"},  # closed loop: plans through api, reads results through analysis
     {"plots"},
     {"missions"},  # export: flies missions in simulation, draws them
-    {"study"},  # (another developer's package, when it lands: above analysis)
     TOP,
 ]
 """The packages from the bottom up: a package may import its own modules and packages of lower

@@ -1,7 +1,7 @@
 """Equilibrium certificates of result files, and their reports (table, JSON).
 
 The search itself, what a certificate is and is not, lives in :mod:`staghunt.solvers.response`
-(docs/model.md section 7); :func:`certify_plan` here runs it on a chosen engine.
+(docs/model.md section 7); :func:`certify_on_engine` runs it on a chosen engine.
 """
 
 from __future__ import annotations
@@ -41,7 +41,7 @@ __all__ = [
     "UAVGap",
     "certificate_table",
     "certificate_to_dict",
-    "certify_plan",
+    "certify_on_engine",
     "certify_result_file",
     "check_certify_plan",
     "plan_from_result_data",
@@ -49,7 +49,7 @@ __all__ = [
 ]
 
 
-def certify_plan(
+def certify_on_engine(
     scenario: Scenario,
     waypoints: np.ndarray,
     *,

@@ -230,7 +230,7 @@ def _count_done(out: Path, methods: tuple[str, ...], seeds: tuple[int, ...], cer
 
 
 def cmd_certify(args: argparse.Namespace) -> int:
-    """``staghunt certify``: see :func:`staghunt.analysis.certify.certify_plan`."""
+    """``staghunt certify``: see :func:`staghunt.analysis.certify.certify_result_file`."""
     from staghunt.analysis.certify import certificate_table, certificate_to_dict, certify_result_file
     from staghunt.io.result_json import read_result, write_json_atomic
 
