@@ -33,18 +33,11 @@ import time
 from pathlib import Path
 
 import staghunt
+from staghunt.inputs import parse_seeds
 from staghunt.engine import get_engine
 from staghunt.solvers.response import CertifyOptions
 
 RESULTS = Path(__file__).parent / "results"
-
-
-def _seeds(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
-    return out
 
 
 def _engines() -> dict[int, object]:
@@ -164,13 +157,13 @@ def main() -> None:
             "source": str(Path(staghunt.__file__).parent)}
     per, small, cert = [], [], []
     for name in args.scenarios.split(","):
-        for seed in _seeds(args.seeds) if args.seeds else []:
+        for seed in parse_seeds(args.seeds) if args.seeds else []:
             per.append(per_evaluation(name, seed, args.particles, args.iterations))
             print(json.dumps(per[-1]), flush=True)
-    for seed in _seeds(args.small_seeds) if args.small_seeds else []:
+    for seed in parse_seeds(args.small_seeds) if args.small_seeds else []:
         small.append(small_budget(seed))
         print(json.dumps(small[-1]), flush=True)
-    for seed in _seeds(args.certified_seeds) if args.certified_seeds else []:
+    for seed in parse_seeds(args.certified_seeds) if args.certified_seeds else []:
         cert.append(certified(seed))
         print(json.dumps(cert[-1]), flush=True)
     meta["load_end"] = os.getloadavg()

@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 import staghunt
+from staghunt.inputs import parse_seeds
 from staghunt.engine import get_engine
 from staghunt.plots.equilibria import EquilibriaPanel, equilibria_figure
 from staghunt.solvers.dominance import dominates
@@ -43,14 +44,6 @@ from staghunt.solvers.selection import Candidate, select
 
 RESULTS = Path(__file__).parent / "results"
 EPSILON = CertifyOptions().epsilon
-
-
-def _seeds(text: str) -> list[int]:
-    out: list[int] = []
-    for part in text.split(","):
-        a, _, b = part.partition("-")
-        out += list(range(int(a), int(b or a) + 1))
-    return out
 
 
 def one_run(scenario, seed: int, starts: int, engine) -> dict:
@@ -156,7 +149,7 @@ def main() -> None:
         starts = args.starts or scenario.solver.starts
         report["starts"] = starts
         runs = []
-        for seed in _seeds(args.seeds):
+        for seed in parse_seeds(args.seeds):
             for cfg in ((1, starts) if seed % 2 else (starts, 1)):
                 r = one_run(scenario, seed, cfg, engine)
                 runs.append(r)

@@ -32,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 import staghunt
+from staghunt.inputs import parse_seeds
 from staghunt.costs import CostModel
 from staghunt.flight.mission import fly_mission, read_trajectories_csv
 from staghunt.missions import formats as fm
@@ -40,13 +41,6 @@ from staghunt.trajectory import time_and_check
 
 RESULTS = Path(__file__).parent / "results"
 SMALL = (200, 100)
-
-
-def _seeds(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
 
 
 def run(scenario_name: str, seed: int, budget: str, fly: bool) -> dict:
@@ -116,8 +110,8 @@ def main() -> None:
     rows = []
     for name in args.scenarios.split(","):
         for budget in args.budgets.split(","):
-            for seed in _seeds(args.seeds):
-                fly = not args.no_fly and (args.fly_seeds is None or seed in _seeds(args.fly_seeds))
+            for seed in parse_seeds(args.seeds):
+                fly = not args.no_fly and (args.fly_seeds is None or seed in parse_seeds(args.fly_seeds))
                 row = run(name, seed, budget, fly)
                 rows.append(row)
                 print(table([row]).splitlines()[-1], flush=True)

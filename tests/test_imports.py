@@ -15,7 +15,8 @@ ROOT = Path(staghunt.__file__).parent
 TOP = {"cli", "__main__", "(facade)"}
 
 LAYERS: list[set[str]] = [
-    {"_version", "errors", "inputs", "encoding", "task", "world"},  # foundation: imports nothing of ours
+    {"_version", "errors"},  # foundation: imports nothing of ours
+    {"inputs", "encoding", "task", "world"},  # reading untrusted input; the world's shapes
     {"scenario", "geo"},  # the problem as given; the site frame
     {"costs"},
     {"checks", "solvers"},

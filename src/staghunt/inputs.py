@@ -11,6 +11,7 @@ scenario loader, PATHS.json, result.json and every command).
 - :func:`check_magnitudes` refuses numbers beyond :data:`MAX_MAGNITUDE` (absurd coordinates,
   weights or heights that would overflow the costs) and naming the element.
 - :func:`clip` shortens echoed text (a 100,000-character key) for error lines.
+- :func:`parse_seeds` reads a seed list (``1-10``, ``1,4,7``) for compare, sweep and benchmarks.
 
 Every error is a ``ValueError`` whose text starts with the file's name.
 """
@@ -21,10 +22,13 @@ import json
 import math
 import numbers
 import os
+import re
 import stat
 import tomllib
 from collections.abc import Mapping
 from typing import Any
+
+from staghunt.errors import FieldError
 
 MAX_INPUT_BYTES = 256 * 2**20
 """Largest input file read (scenario, PATHS.json, result.json): 256 MB."""
@@ -178,3 +182,30 @@ def check_magnitudes(data: Any, limit: float = MAX_MAGNITUDE, depth_limit: int =
                         else "use metres and moderate weights")
                 raise ValueError(f"{key_path(where)}: {text} is beyond the supported magnitude "
                                  f"{limit:.0e} ({hint})")
+
+
+_SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")
+
+
+def parse_seeds(text: str) -> tuple[int, ...]:
+    """``"1-10"``, ``"3"``, ``"1,4,7"`` or ``"1-3,8"`` -> seeds in order, duplicates dropped.
+
+    Raises ``ValueError`` with one line for anything else (negative, empty, reversed range).
+    """
+    out: list[int] = []
+    seen: set[int] = set()
+    for part in text.split(","):
+        match = _SEED_PART.fullmatch(part.strip())
+        if match is None:
+            raise FieldError(f"seeds: expected seeds >= 0 like 1-10, 7 or 1,4,7, got {text!r}", "seeds")
+        lo = int(match.group(1))
+        hi = int(match.group(2)) if match.group(2) is not None else lo
+        if lo > hi:
+            raise FieldError(f"seeds: the range {part.strip()!r} runs backwards", "seeds")
+        if hi - lo > 100_000:
+            raise FieldError(f"seeds: the range {part.strip()!r} is too long", "seeds")
+        for v in range(lo, hi + 1):
+            if v not in seen:
+                seen.add(v)
+                out.append(v)
+    return tuple(out)

@@ -39,13 +39,14 @@ import hashlib
 import itertools
 import json
 import os
-import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Annotated, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from staghunt.errors import FieldError
+from staghunt.inputs import parse_seeds as read_seeds
 from staghunt.scenario.errors import ScenarioError
 from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, CertifyOptions
 from staghunt.study.tasks import PlanTask
@@ -114,21 +115,13 @@ def sweep_schema() -> dict[str, Any]:
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", **SweepFile.model_json_schema()}
 
 
-_SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")
-
-
 def parse_seeds(text: str) -> tuple[int, ...]:
-    """``"1-8"``, ``"3"``, ``"1,4,7"``, ``"1-3,8"`` -> seeds in order, duplicates dropped."""
-    out: list[int] = []
-    for part in text.split(","):
-        m = _SEED_PART.fullmatch(part.strip())
-        if m is None:
-            raise SpecError(f"seeds: expected seeds >= 0 like '1-8', '7' or '1,4,7', got {text!r}")
-        lo, hi = int(m.group(1)), int(m.group(2) or m.group(1))
-        if lo > hi or hi - lo > 100_000:
-            raise SpecError(f"seeds: the range {part.strip()!r} runs backwards or is too long")
-        out += [v for v in range(lo, hi + 1) if v not in out]
-    return tuple(out)
+    """``"1-8"``, ``"3"``, ``"1,4,7"``, ``"1-3,8"`` -> seeds in order, duplicates dropped
+    (:func:`staghunt.inputs.parse_seeds`, its error as a :class:`SpecError`)."""
+    try:
+        return read_seeds(text)
+    except FieldError as exc:
+        raise SpecError(str(exc)) from None
 
 
 @dataclass(frozen=True, eq=False)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Iterable
@@ -15,13 +14,13 @@ import numpy as np
 
 from staghunt.checks import Metrics
 from staghunt.errors import FieldError
+from staghunt.inputs import parse_seeds  # noqa: F401  (re-exported: compare's --seeds)
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.response import CertifyOptions
 
 COMPARE_FORMAT = "staghunt-compare/1"
 DEFAULT_METHODS = ("game", "paper", "rigid", "independent", "weighted")
 REFERENCE_METHOD = "game"
-_SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")
 
 @dataclass(frozen=True, eq=False)
 class RunRecord:
@@ -131,30 +130,6 @@ def _enc_list(a: Iterable[float]) -> list[float | str | None]:
 def _json_normal(obj: Any) -> Any:
     """``obj`` as it reads back from JSON (tuples become lists...), for comparisons."""
     return json.loads(json.dumps(obj, allow_nan=False))
-
-
-def parse_seeds(text: str) -> tuple[int, ...]:
-    """``"1-10"``, ``"3"``, ``"1,4,7"`` or ``"1-3,8"`` -> seeds in order, duplicates dropped.
-
-    Raises ``ValueError`` with one line for anything else (negative, empty, reversed range).
-    """
-    out: list[int] = []
-    seen: set[int] = set()
-    for part in text.split(","):
-        match = _SEED_PART.fullmatch(part.strip())
-        if match is None:
-            raise FieldError(f"seeds: expected seeds >= 0 like 1-10, 7 or 1,4,7, got {text!r}", "seeds")
-        lo = int(match.group(1))
-        hi = int(match.group(2)) if match.group(2) is not None else lo
-        if lo > hi:
-            raise FieldError(f"seeds: the range {part.strip()!r} runs backwards", "seeds")
-        if hi - lo > 100_000:
-            raise FieldError(f"seeds: the range {part.strip()!r} is too long", "seeds")
-        for v in range(lo, hi + 1):
-            if v not in seen:
-                seen.add(v)
-                out.append(v)
-    return tuple(out)
 
 
 def parse_methods(text: str) -> tuple[str, ...]:
