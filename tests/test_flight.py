@@ -77,10 +77,11 @@ def test_splice_is_continuous_in_position_velocity_and_acceleration():
     assert len(new.pieces) == 2 and new.pieces[1].t0 == ts
 
 
-def test_stop_is_continuous_synchronised_and_comes_to_rest():
+@pytest.mark.parametrize("brake", [False, True])
+def test_stop_is_continuous_synchronised_and_comes_to_rest(brake):
     ref = Reference((timed_path(_team_points(), 0.0, LIMITS),))
     ts = 4.0
-    stop = stop_piece(ref, ts, LIMITS)
+    stop = stop_piece(ref, ts, LIMITS, brake=brake)
     new = ref.spliced(stop)
     e = 1e-7
     before, after = new.state(np.array([ts - e, ts + e]))[:3].transpose(2, 0, 1, 3)
@@ -92,6 +93,26 @@ def test_stop_is_continuous_synchronised_and_comes_to_rest():
     # synchronised: both UAVs are where the original plan had them at one common instant
     tau = stop.warp(t)[0]
     assert np.allclose(s[0], ref.state(tau)[0], atol=1e-9)
+
+
+def test_braking_stop_is_shorter_than_the_smooth_one():
+    """The emergency warp stops in v^2 / (2 a (1 - ramp)) against 1.5 v^2 / (2 a): hand-computed
+    on the warp itself (tau(T) = T / 2 for both, T = v / (a (1 - ramp)) against 1.5 v / a)."""
+    from staghunt.flight.reference import BRAKE_RAMP, brake_warp
+
+    u = np.linspace(0.0, 1.0, 2001)
+    tau, d1, d2 = brake_warp(u)
+    assert tau[-1] == pytest.approx(0.5, abs=1e-6) and d1[0] == 1.0 and d1[-1] == pytest.approx(0.0, abs=1e-9)
+    assert d2[0] == 0.0 and d2[-1] == 0.0  # continuous acceleration at both ends
+    assert -d2.min() == pytest.approx(1.0 / (1.0 - BRAKE_RAMP), rel=1e-3)
+    ref = Reference((timed_path(_team_points(), 0.0, LIMITS),))
+    ts = 4.0
+    travel = {}
+    for brake in (False, True):
+        stop = stop_piece(ref, ts, LIMITS, brake=brake)
+        p = ref.spliced(stop).state(np.array([ts, ts + stop.duration + 1.0]))[0]
+        travel[brake] = np.linalg.norm(p[:, 1] - p[:, 0], axis=-1).max()
+    assert travel[True] < 0.9 * travel[False]  # 2.32 m against 2.74 m here (the bend adds to the peak)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -28,6 +28,7 @@ with shared knot times; a quintic interpolating B-spline takes exactly those end
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from dataclasses import dataclass
 from typing import Literal
 
@@ -62,11 +63,16 @@ class Piece:
     spline: BSpline | None = None
     base: "Piece | None" = None
     duration: float = 0.0
+    brake: bool = False
 
     def warp(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """A stop's ``tau, tau', tau''`` at times ``t`` ``(T,)``."""
+        """A stop's ``tau, tau', tau''`` at times ``t`` ``(T,)``: the smooth warp of the module
+        docstring, or (``brake``) :func:`brake_warp`."""
         T = self.duration
         u = np.clip((t - self.t0) / T, 0.0, 1.0)
+        if self.brake:
+            tau_u, d1, d2u = brake_warp(u)
+            return self.t0 + T * tau_u, d1, d2u / T
         tau = self.t0 + T * (u - u**3 + 0.5 * u**4)
         d1 = 1.0 - (3.0 * u**2 - 2.0 * u**3)
         d2 = -(6.0 * u - 6.0 * u**2) / T
@@ -216,18 +222,49 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                      f"{a:.3g} m/s^2 after a stretch of {stretch:.3g})")
 
 
-def stop_piece(ref: Reference, t_s: float, limits: VehicleLimits) -> Piece:
+BRAKE_RAMP = 0.1
+"""Share of a braking stop's duration over which its deceleration ramps up (and down)."""
+
+
+@lru_cache(maxsize=1)
+def _brake_table(n: int = 4001) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """``u``, ``tau(u)``, ``tau'(u)``, ``tau''(u)`` of :func:`brake_warp` on a grid of ``n``."""
+    u = np.linspace(0.0, 1.0, n)
+    r = BRAKE_RAMP
+    x = np.clip(np.minimum(u, 1.0 - u) / r, 0.0, 1.0)
+    g = 3.0 * x**2 - 2.0 * x**3  # 0 at both ends, 1 in between
+    du = u[1] - u[0]
+    G = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * du)])
+    d2 = -g / G[-1]
+    d1 = 1.0 - G / G[-1]
+    tau = np.concatenate([[0.0], np.cumsum(0.5 * (d1[1:] + d1[:-1]) * du)])
+    return u, tau, d1, d2
+
+
+def brake_warp(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The warp of an emergency stop on ``u = (t - t_s) / T`` in ``[0, 1]``: ``tau / T``,
+    ``tau'`` and ``T tau''``. Its deceleration ramps up over :data:`BRAKE_RAMP` of ``T`` (a
+    smoothstep, so ``tau'' = 0`` at both ends and the splice stays continuous in acceleration),
+    holds, and ramps down: it stops in ``v^2 / (2 a (1 - BRAKE_RAMP))`` at a peak deceleration
+    ``a``, against ``1.5 v^2 / (2 a)`` for the smooth warp."""
+    grid, tau, d1, d2 = _brake_table()
+    return np.interp(u, grid, tau), np.interp(u, grid, d1), np.interp(u, grid, d2)
+
+
+def stop_piece(ref: Reference, t_s: float, limits: VehicleLimits, brake: bool = False) -> Piece:
     """A synchronised stop starting at ``t_s``: the piece flown at ``t_s`` slowed down to rest
-    with one common time warp (module docstring), as short as ``max_acceleration`` allows."""
+    with one common time warp (module docstring; ``brake``: :func:`brake_warp`, the shortest
+    stop, for emergencies), as short as ``max_acceleration`` allows."""
     base = ref.piece_at(t_s)
     if base.kind == "stop":  # already stopping: keep that stop
         return base
     t = np.linspace(t_s, base.t1, max(2, math.ceil((base.t1 - t_s) / CHECK_STEP_S) + 1))
     s = base.state(t)
     v = float(np.linalg.norm(s[1], axis=-1).max())
-    T = max(0.5, 1.5 * v / (MARGIN * limits.max_acceleration))
+    peak = 1.0 / (1.0 - BRAKE_RAMP) if brake else 1.5  # peak deceleration x T / v
+    T = max(0.5, peak * v / (MARGIN * limits.max_acceleration))
     for _ in range(30):
-        piece = Piece("stop", t_s, t_s + T, base.knots, base.points, base=base, duration=T)
+        piece = Piece("stop", t_s, t_s + T, base.knots, base.points, base=base, duration=T, brake=brake)
         grid = np.linspace(t_s, t_s + T, max(2, math.ceil(T / CHECK_STEP_S) + 1))
         peak = float(np.linalg.norm(piece.state(grid)[2], axis=-1).max())
         if peak <= limits.max_acceleration:

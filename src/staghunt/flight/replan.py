@@ -419,15 +419,16 @@ class Replanner:
     def _stop(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, str]:
         """The fallback: a synchronised stop at the switch time within ``max_acceleration``; if
         that stop (along the current paths) would come closer than the hard clearance to
-        something known, an emergency stop at once (``t_now``) with twice the acceleration, if
-        that keeps more clearance. Returns the reference and ``"stop"`` / ``"emergency stop"``."""
+        something known, an emergency stop at once (``t_now``) with twice the acceleration and
+        the braking warp (:func:`~staghunt.flight.reference.brake_warp`), if that keeps more
+        clearance. Returns the reference and ``"stop"`` / ``"emergency stop"``."""
         limits = self.scenario.vehicle
         if ref.piece_at(t_s).kind == "stop":
             return ref, "stop"
         options = []
         for status, t0, lim in (("stop", t_s, limits),
                                 ("emergency stop", t_now, replace(limits, max_acceleration=2 * limits.max_acceleration))):
-            piece = stop_piece(ref, t0, lim)
+            piece = stop_piece(ref, t0, lim, brake=status == "emergency stop")
             cand = ref.spliced(piece)
             problems, _, least = check_piece(self.scenario, self.known, self.dyn, cand, t0, piece.t1 + 1.0)
             if not problems:
