@@ -18,7 +18,8 @@ A piece is either
   stays on its planned path (so the separations and clearances already checked still hold),
   and all of them come to rest together at the same path parameter. ``tau'' = 0`` at both ends,
   so position, velocity and acceleration are continuous; ``T`` is the shortest that keeps the
-  acceleration within ``max_acceleration``.
+  acceleration within ``max_acceleration``. An emergency stop uses :func:`brake_warp` instead
+  (the same continuity, a shorter stop).
 
 Why scipy's ``make_interp_spline`` (k = 5) and not toppra or a minimum-snap package: the splice
 needs position, velocity *and* acceleration imposed at the switch for the whole team at once
