@@ -341,7 +341,8 @@ def _start_plan(kind: str, model: CostModel, settings: SolverSettings, rng: np.r
 
     - ``rigid``: the rigid-formation plan (:mod:`staghunt.solvers.rigid`): feasible, in formation;
     - ``independent``: every UAV's own ``J_s`` optimum alone (the hares; may collide);
-    - ``weighted``: the team's summed cost, all paths jointly;
+    - ``weighted``: the team's summed cost, all paths jointly, warm-started from ``best`` (the
+      best equilibrium so far, if any) and :data:`LOCAL_SHARE` of perturbations of it;
     - ``random``: one uniform draw of every UAV's path in its spherical search space."""
     K, vf, N = settings.waypoints, settings.velocity_fraction, model.n_uavs
     if kind == "rigid":
