@@ -200,6 +200,27 @@ def test_resume_plans_nothing_again(done, scenario, settings, monkeypatch):
     assert (out / "compare.json").read_bytes() == before
 
 
+def test_resume_certifies_a_run_planned_but_not_certified(done, scenario, settings, monkeypatch, tmp_path):
+    """A run on disk without its certificate is certified, not planned again: the same
+    certificate as the one the comparison made."""
+    out, _ = done
+    import shutil
+
+    copy = tmp_path / "cmp"
+    shutil.copytree(out, copy)
+    lost = copy / "runs" / "game-s1.certify.json"
+    lost.unlink()
+
+    def no_plan(*a, **k):
+        raise AssertionError("a finished run was planned again")
+
+    monkeypatch.setattr(staghunt.api, "plan", no_plan)
+    report = run_compare(scenario, copy, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
+                         plan_options={"engine": "numpy"})
+    assert report.complete
+    assert strict(lost) == strict(out / "runs" / "game-s1.certify.json")
+
+
 def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings, monkeypatch):
     class Stop(CompareListener):
         def run_finished(self, index, total, record, resumed):

@@ -117,7 +117,7 @@ def plan(
             if np.array_equal(seen, wp):
                 return cert
         t = time.perf_counter()
-        cert = _certificate(request, wp, certify_progress)
+        cert = certify_waypoints(request, wp, certify_progress)
         checks.append((np.array(wp, copy=True), cert, time.perf_counter() - t))
         return cert
 
@@ -141,9 +141,10 @@ def plan(
     return replace(result, certificate=cert, certificate_time_s=sum(c[2] for c in checks))
 
 
-def _certificate(request: PlanRequest, waypoints: np.ndarray,
-                 progress: Callable[[int, int, int, int], None] | None) -> Certificate:
-    """The certificate of ``waypoints``, run by the request's engine: with the compiled engine on
+def certify_waypoints(request: PlanRequest, waypoints: np.ndarray,
+                      progress: Callable[[int, int, int, int], None] | None) -> Certificate:
+    """The certificate of ``waypoints`` ``(N, K, 3)`` with the checked ``request``'s certificate
+    options (``request.certify``, not ``None``) and seed, run by its engine: with the compiled engine on
     several cores, the UAVs' searches run side by side, one thread each (the same certificate:
     each search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
     assert request.certify is not None and request.certify_settings is not None

@@ -57,6 +57,26 @@ def int_at_least(low: int) -> Any:
     return parse
 
 
+def number_between(low: float, high: float, unit: str, above_low: bool = False) -> Any:
+    """An argparse ``type`` accepting numbers in ``[low, high]`` (``above_low``: ``(low, high]``),
+    in ``unit``."""
+
+    def parse(text: str) -> float:
+        from staghunt.inputs import clip
+
+        try:
+            v = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a number, got {clip(repr(text))}") from None
+        if not ((low < v if above_low else low <= v) and v <= high):
+            span = f"{'(' if above_low else '['}{low:g}, {high:g}]"
+            raise argparse.ArgumentTypeError(f"must lie in {span} {unit}, got {clip(repr(text))}")
+        return v
+
+    parse.__name__ = "number"
+    return parse
+
+
 MAX_THREADS = 256
 """Largest ``--threads`` (each thread holds its own block buffers)."""
 

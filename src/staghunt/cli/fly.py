@@ -25,26 +25,13 @@ from staghunt.cli.common import (
     command,
     engine_kwargs,
     int_at_least,
+    number_between,
     one_line,
     os_reason,
     path_argument,
     say,
 )
 from staghunt.inputs import clip
-
-
-def _number(low: float, high: float, unit: str) -> Any:
-    def parse(text: str) -> float:
-        try:
-            v = float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"expected a number, got {clip(repr(text))}") from None
-        if not (low <= v <= high):
-            raise argparse.ArgumentTypeError(f"must lie in [{low:g}, {high:g}] {unit}, got {clip(repr(text))}")
-        return v
-
-    parse.__name__ = "number"
-    return parse
 
 
 def add_commands(sub: Any) -> None:
@@ -63,13 +50,13 @@ def add_commands(sub: Any) -> None:
                    help="built-in scenario, scenario .toml file, or a result.json written by 'staghunt plan'")
     p.add_argument("--events", metavar="FILE", type=path_argument,
                    help="events file (TOML: [[events]], [[moving]], [[jibs]], [sensing]) added to the scenario's")
-    p.add_argument("--wind", type=_number(0, 30, "m/s"), default=0.0, metavar="M/S",
+    p.add_argument("--wind", type=number_between(0, 30, "m/s"), default=0.0, metavar="M/S",
                    help="mean wind speed with Dryden turbulence (default 0)")
-    p.add_argument("--wind-heading", type=_number(-360, 360, "degrees"), default=0.0, metavar="DEG",
+    p.add_argument("--wind-heading", type=number_between(-360, 360, "degrees"), default=0.0, metavar="DEG",
                    help="direction the wind blows towards, degrees counter-clockwise from east (default 0)")
     p.add_argument("--seed", type=int_at_least(0), default=0, metavar="N", help="seed of the whole episode (default 0)")
     p.add_argument("--out", metavar="DIR", type=path_argument, required=True, help="output directory")
-    p.add_argument("--latency", type=_number(0.01, 10, "s"), default=None, metavar="S",
+    p.add_argument("--latency", type=number_between(0.01, 10, "s"), default=None, metavar="S",
                    help="latency budget between a trigger and the switch to the new plan (default 0.3)")
     p.add_argument("--replan-particles", type=int_at_least(1), metavar="N", help="particles of each re-plan's game")
     p.add_argument("--replan-iterations", type=int_at_least(1), metavar="N", help="iterations of each re-plan's game")

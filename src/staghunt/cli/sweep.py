@@ -17,28 +17,8 @@ from typing import Any
 
 from staghunt.cli.common import (
     EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_quiet_option, check_out_dir, command,
-    error, int_between, one_line, path_argument, say,
+    error, int_between, number_between, one_line, path_argument, say,
 )
-
-
-def _positive_seconds(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not 0 < value <= 3600:
-        raise argparse.ArgumentTypeError(f"must lie in (0, 3600] seconds, got {text}")
-    return value
-
-
-def _seconds_at_least_0(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a number of seconds, got {text!r}") from None
-    if not 0 <= value <= 3600:
-        raise argparse.ArgumentTypeError(f"must lie in [0, 3600] seconds, got {text}")
-    return value
 
 
 def add_commands(sub: Any) -> None:
@@ -64,9 +44,10 @@ def add_commands(sub: Any) -> None:
                    help="join the Dask scheduler at ADDRESS (e.g. tcp://host:8786) instead of starting a local cluster")
     p.add_argument("--workers", type=int_between(1, 1024), metavar="N",
                    help="worker processes of the local cluster (default: one per core; 1 runs in this process)")
-    p.add_argument("--connect-timeout", type=_positive_seconds, metavar="S", default=DEFAULT_CONNECT_TIMEOUT_S,
+    p.add_argument("--connect-timeout", type=number_between(0, 3600, "seconds", above_low=True), metavar="S",
+                   default=DEFAULT_CONNECT_TIMEOUT_S,
                    help=f"seconds to reach --scheduler before giving up (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
-    p.add_argument("--flush-every", type=_seconds_at_least_0, metavar="S", default=FLUSH_EVERY_S,
+    p.add_argument("--flush-every", type=number_between(0, 3600, "seconds"), metavar="S", default=FLUSH_EVERY_S,
                    help=f"write finished rows at most S seconds after their task (0: after every task; "
                    f"default: {FLUSH_EVERY_S:g})")
     p.add_argument("--figures-only", action="store_true", help="only draw the figures from DIR/results.parquet")

@@ -108,12 +108,7 @@ def run_plan_task(task: PlanTask, progress: "Progress | None" = None,
     base = {"worker": worker_name()}
     try:
         if task.waypoints is not None:
-            from staghunt.solvers.response import CertifyOptions
-
-            req = task.request
-            cert = api._certificate(req.scenario, np.asarray(task.waypoints, dtype=float),
-                                    req.certify or CertifyOptions(), req.seed, req.settings,
-                                    certify_progress, req.engine)
+            cert = api.certify_waypoints(task.request, np.asarray(task.waypoints, dtype=float), certify_progress)
             return TaskOutcome(task.key, {**base, "status": "certified", "task_time_s": time.perf_counter() - t0},
                                certificate=cert)
         result = api.plan(task.request, progress=progress, certify_progress=certify_progress)
