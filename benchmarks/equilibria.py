@@ -76,12 +76,12 @@ def _dominates(a, b, tol: float = 0.0) -> bool:
 
 def scenario_summary(runs: list[dict], starts: int) -> dict:
     everything = [(r["seed"], r["starts"], c) for r in runs for c in r["candidates"] if c["certified"]]
-    pool = [Candidate(c["start"], np.zeros(0), np.asarray(c["J"]), 0.0, None, 0) for _, _, c in everything]
 
-    class _Cert:  # the pool is certified already
+    class _Certified:  # what select() asks of a certificate: every pooled plan was certified
         is_equilibrium = True
 
-    pool = [Candidate(p.start, p.plan, p.J, 0.0, _Cert(), 0) for p in pool]  # type: ignore[arg-type]
+    pool = [Candidate(c["start"], np.zeros(0), np.asarray(c["J"]), 0.0, _Certified(), 0)  # type: ignore[arg-type]
+            for _, _, c in everything]
     sel = select(pool, EPSILON) if pool else None
     distinct = [] if sel is None else [
         {"J": [round(x, 1) for x in pool[i].J], "start": pool[i].start, "seed": everything[i][0],

@@ -457,13 +457,12 @@ def solve_game(run: MethodRun) -> SolverOutput:
         if S > 1:
             start, used = team_polish(model, start, min(int(TEAM_POLISH_SHARE * budget), cap - spent), evaluator)
             spent += used
-        if S > 1 and run.certify is not None:
             # The start itself may already be an equilibrium (the rigid plan often is): a candidate
             # of its own, whatever equilibrium the rounds then reach from it.
             c = evaluate(model, start[None])
-            if c.total_violation[0] == 0 and certificate(start).is_equilibrium:
-                candidates.append(Candidate(kind + " (start)", start, c.total[0], 0.0, certificate(start),
-                                            spent - before))
+            cert = certificate(start) if c.total_violation[0] == 0 else None
+            if cert is not None and cert.is_equilibrium:
+                candidates.append(Candidate(kind + " (start)", start, c.total[0], 0.0, cert, spent - before))
         out = best_response_rounds(model, start, settings, rng, runner, evaluator, cap, spent, record,
                                    repair=kind != "rigid", certified=explore_stop)
         spent = out.evaluations

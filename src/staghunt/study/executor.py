@@ -96,16 +96,16 @@ class DaskExecutor(Generic[T, R]):
                  connect_timeout: float = DEFAULT_CONNECT_TIMEOUT_S) -> None:
         import logging
 
+        # The cluster's own logging (worker restarts, lost connections) is not the user's
+        # business unless STAGHUNT_DEBUG is set: the sweep reports what matters. The variable is
+        # read when distributed is imported, here and in the (spawned) workers.
         if not os.environ.get("STAGHUNT_DEBUG"):
-            os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")  # read when distributed is imported
+            os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
         from distributed import Client, LocalCluster
 
-        # The cluster's own logging (worker restarts, lost connections) is not the user's
-        # business unless STAGHUNT_DEBUG is set: the sweep reports what matters.
         if not os.environ.get("STAGHUNT_DEBUG"):
             for name in ("distributed", "tornado"):
                 logging.getLogger(name).setLevel(logging.CRITICAL)
-            os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")  # the workers' (spawned) logging
         self.cluster = None
         if address is not None:
             try:

@@ -95,21 +95,17 @@ def pending(sweep: Sweep, results: ResultStore) -> list[PlanTask]:
     return [t for t in sweep.tasks if t.key not in done]
 
 
+def _prepare_numba() -> float:
+    """Load (or compile) the compiled engine's kernels in this process; the seconds it took."""
+    from staghunt.engine.numba_engine import prepare
+
+    return float(prepare())
+
+
 def warm_engine(sweep: Sweep) -> float:
     """Compile (or load) the compiled engine's kernels here, into Numba's on-disk cache, before
     any worker starts, so that no worker compiles; returns the seconds it took."""
-    if sweep.spec.engine != "numba":
-        return 0.0
-    from staghunt.engine.numba_engine import prepare
-
-    return float(prepare())
-
-
-def _prepare_numba() -> float:
-    """On a worker: load (or compile) the kernels; the seconds it took."""
-    from staghunt.engine.numba_engine import prepare
-
-    return float(prepare())
+    return _prepare_numba() if sweep.spec.engine == "numba" else 0.0
 
 
 def warm_workers(sweep: Sweep, executor: Any) -> list[float]:
