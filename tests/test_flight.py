@@ -317,6 +317,45 @@ def test_popup_on_the_next_leg_triggers_a_replan_and_the_flight_stays_clear(calm
     assert r.min_clearance.min() > 0 and r.status is FlightStatus.ARRIVED
 
 
+def test_replan_is_the_same_flight_on_one_core_and_on_two(calm):
+    """On two cores the moving and the from-rest solves run side by side, each with its own
+    generator: the flight is the one flown when they run one after the other."""
+    from staghunt.io.flight_files import flight_csv
+
+    ahead = calm.reference[0][np.searchsorted(calm.times, 6.5)]
+    dyn = Dynamics(events=(Event(4.0, "appear", "popup", Cylinder(float(ahead[0]), float(ahead[1]), 2.0, "popup")),))
+    one, two = (fly(SMALL, events=dyn, seed=3, threads=t) for t in (1, 2))
+    assert [x.status for x in one.replans] == [x.status for x in two.replans]
+    assert [x.nash_gaps for x in one.replans] == [x.nash_gaps for x in two.replans]
+    assert flight_csv(one) == flight_csv(two)
+    assert sum(x.evaluations for x in two.replans) >= sum(x.evaluations for x in one.replans)
+
+
+def test_popup_too_close_to_stop_within_twice_the_limit_brakes_harder(calm, monkeypatch):
+    """A pop-up 1.5 m in front of a UAV at 3.7 m/s: an emergency stop at 2 x 3 m/s^2 runs 1.6 m
+    along the path and hits it; the ladder goes on to 3 x (1.0 m) and the simulated UAV stays
+    clear, also when it then leaves the hover with the clearance it has."""
+    import staghunt.flight.replan as replan
+
+    t0 = 5.0
+    k = np.searchsorted(calm.times, t0)
+    p, v = calm.reference[0][k], calm.velocity[0][k]
+    u = v[:2] / np.hypot(v[0], v[1])
+    R, body = 2.0, 0.5
+    centre = p[:2] + u * (R + body + 1.5)
+    dyn = Dynamics(events=(Event(t0, "appear", "popup", Cylinder(float(centre[0]), float(centre[1]), R, "popup")),))
+
+    def clearance(r):
+        after = r.times >= t0
+        return float((np.hypot(r.actual[0, after, 0] - centre[0], r.actual[0, after, 1] - centre[1]) - R - body).min())
+
+    r = fly(SMALL, events=dyn, seed=0)
+    assert r.replans[0].status == "emergency stop"
+    assert clearance(r) > 0.2 and r.min_clearance.min() > 0 and r.status is FlightStatus.ARRIVED
+    monkeypatch.setattr(replan, "EMERGENCY_FACTORS", (2.0,))
+    assert clearance(fly(SMALL, events=dyn, seed=0)) < 0
+
+
 def test_slewing_jib_that_would_cross_the_plan_makes_no_contact():
     jib = SlewingJib("jib", (30.0, 2.0), 25.0, 2.0, 0.0, 40.0, 0.0, 130.0, 12.0)
     r = fly(SMALL, events=Dynamics(jibs=(jib,)), seed=0)
@@ -439,6 +478,7 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_checked():
     from staghunt.costs import to_absolute
     from staghunt.engine import get_engine
     from staghunt.flight.known import check_piece, to_xyh
+    from staghunt.encoding import ANGLE_RANGE
     from staghunt.flight.replan import Replanner
 
     sc = load_scenario(SMALL)
@@ -460,7 +500,8 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_checked():
                                      0.0, sc.vehicle),))
         first, _, _ = rp._splice(base, 0.0, sub, wp, math.inf)
         assert first is not None
-        ref, cert = rp._certified(first, wp, sub, settings, (base, 0.0, math.inf))
+        ref, cert, spent = rp._certified(first, wp, sub, settings, (base, 0.0, math.inf), ANGLE_RANGE)
+        assert spent >= sum(u.evaluations for u in cert.uavs)
         gaps[rounds] = cert.max_relative_gap
         assert not check_piece(sub, rp.known, dyn, ref, 0.0, ref.arrival)[0]  # flown plan checked
         if rounds == 0:

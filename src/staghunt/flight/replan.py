@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from typing import Any
 
@@ -34,7 +35,7 @@ import numpy as np
 
 from staghunt.costs import CostModel, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE
-from staghunt.engine import Engine, side_by_side
+from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.flight.known import (
     KnownWorld,
     check_piece,
@@ -65,6 +66,17 @@ MAX_DELAY_S = 60
 MAX_STRETCH = 2.0
 """A plan from a moving switch state that must be slowed more than this to meet the limits
 (a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
+RELAX_KEEP = 0.8
+"""A UAV that rests closer than the hard clearance to an obstacle (an emergency stop short of a
+pop-up) re-plans with the clearance relaxed to this share of what it has: its paths may leave
+sideways, not come closer (the solver's plans lie on their constraints, and a plan allowed to
+come half the hard clearance closer grazed a pop-up within the vehicles' tracking error)."""
+EMERGENCY_FACTORS = (2.0, 3.0)
+"""Multiples of ``max_acceleration`` an emergency stop may brake at, tried in this order: the
+mission limit (3 m/s^2 by default) is well below a multirotor's capability (the simulated
+Hummingbird's thrust-to-weight ratio is about 10: 9 m/s^2 of braking tilts it by 43 degrees at
+1.4 g of thrust), and a stop that the lower factor cannot make clear of what is known uses the
+higher one."""
 
 
 @dataclass(frozen=True)
@@ -155,11 +167,11 @@ class ReplanRecord:
     what it cost (``latency_s`` measured wall time of the whole re-plan, certificate included,
     against ``latency_budget_s``; ``evaluations`` path evaluations), what came out
     (``status``: ``"replanned"``; ``"stop, replanned"``: a synchronised stop, then a new plan
-from rest; ``"stop"``: a synchronised stop to hover, no plan yet; ``"emergency stop"``: the
-same at twice the acceleration, at once; ``"sidestep"``: a hovering team moved as a whole out
-of a known motion's way),
-    ``attempts`` solves, and the certificate (``nash_gaps`` relative per UAV, ``verdict``,
-    ``certified``: an epsilon-equilibrium). ``state_error_m``: the largest distance between a
+    from rest; ``"stop"``: a synchronised stop to hover, no plan yet; ``"emergency stop"``: the
+    same at once, braking at two or three times the acceleration; ``"sidestep"``: a hovering
+    team moved as a whole out of a known motion's way), ``attempts`` solves, and the
+    certificate (``nash_gaps`` relative per UAV, ``verdict``, ``certified``: an
+    epsilon-equilibrium). ``state_error_m``: the largest distance between a
     UAV's state predicted from the fed-back one (position + velocity x latency) and the
     reference state the new plan starts from."""
 
@@ -201,16 +213,39 @@ of a known motion's way),
         }
 
 
+@dataclass(frozen=True)
+class _Attempt:
+    """What :meth:`Replanner._attempts` found: the new plan spliced into its base (``ref``,
+    ``None`` if no plan passed), the last rounds' outcome (``out``), its scenario (``sub``), the
+    problems, the solves made (``tries``), the path evaluations spent, the heading half-width
+    solved in, and the conflict windows known at the end."""
+
+    ref: Reference | None
+    out: Any
+    sub: Any
+    problems: list[str]
+    tries: int
+    spent: int
+    azimuth: float
+    windows: list[tuple[str, float, float]]
+
+
 class Replanner:
-    """Re-solves the game in flight for one episode; holds what it needs between re-plans."""
+    """Re-solves the game in flight for one episode; holds what it needs between re-plans.
+
+    With the compiled engine on several cores, a re-plan from a moving state solves from that
+    state and from rest after a stop *at the same time*, one thread each (each solve has its own
+    generator, drawn before either starts, so the flight is the same on any number of cores;
+    only the measured latency and the evaluations spent differ)."""
 
     def __init__(self, scenario: Scenario, dyn: Dynamics, config: FlyConfig, engine: Engine,
                  rng: np.random.Generator) -> None:
         self.scenario, self.dyn, self.config, self.engine, self.rng = scenario, dyn, config, engine, rng
         self.known = KnownWorld(scenario)
         self.records: list[ReplanRecord] = []
-        self._spent = 0
-        self._azimuth = ANGLE_RANGE
+        self._runner, self._workers = side_by_side(engine)
+        # the engine each of two side-by-side solves uses (pinned to one thread), or the engine
+        self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
 
     def solve(self, ref: Reference, t_now: float, trigger: str, scale: int = 1,
               windows: list[tuple[str, float, float]] | None = None,
@@ -223,10 +258,12 @@ class Replanner:
         with it and the difference reported (``state_error_m``: the tracking error plus the
         sensor noise, a few centimetres without wind).
 
-        First from the switch state (moving); if no plan from there passes (a sharp turn at
-        speed, no feasible path), from rest: the team stops in sync along its current paths
-        (if that stop is clear of everything known) and the new plan starts where it rests
-        (status ``"stop, replanned"``). If neither passes: the stop alone (``"stop"``, or
+        From the switch state (moving) and, unless the team is already at rest, from rest: the
+        team stops in sync along its current paths (if that stop is clear of everything known)
+        and the new plan starts where it rests. The two are solved side by side when the engine
+        has two cores, else one after the other (from rest only if the moving one fails); the
+        moving plan is flown when it passes (``"replanned"``), else the one from rest
+        (``"stop, replanned"``). If neither passes: the stop alone (``"stop"``, or
         ``"emergency stop"``, :meth:`_stop`)."""
         cfg, scenario = self.config, self.scenario
         wall0 = time.perf_counter()
@@ -235,65 +272,83 @@ class Replanner:
         K = scenario.solver.waypoints
         settings = scenario.solver.with_(particles=cfg.replan_particles * scale,
                                          iterations=cfg.replan_iterations, waypoints=K)
-        self._spent = 0
         windows = list(windows or [])
+        moving_rng, rest_rng = self.rng.spawn(2)
         warm = remaining_plan(scenario, ref, t_s, K)
         error = 0.0
         if measured is not None:
             predicted = measured[0] + measured[1] * budget_s
             error = float(np.linalg.norm(predicted - ref.state(np.array([t_s]))[0][:, 0], axis=-1).max())
         at_rest = ref.piece_at(t_s).kind == "stop"
-        new_ref, out, sub, problems, attempts = self._attempts(
-            ref, t_s, windows, warm, settings, cfg.attempts, MAX_STRETCH,
-            WIDE_AZIMUTH if at_rest else ANGLE_RANGE)
-        status = "replanned"
-        splice = (ref, t_s, MAX_STRETCH)
-        if new_ref is None and not at_rest:
+
+        def moving(engine: Engine) -> _Attempt:
+            return self._attempts(ref, t_s, list(windows), warm, settings, cfg.attempts, MAX_STRETCH,
+                                  WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine)
+
+        def from_rest(engine: Engine) -> tuple[_Attempt | None, Reference, Piece]:
             stopped, stop, bad = self._stop_short(ref, t_now, t_s)
-            if not bad:
-                rest = remaining_plan(scenario, stopped, stop.t1, K)
-                more, out, sub, problems2, n2 = self._attempts(stopped, stop.t1, windows, rest,
-                                                               settings, 2, math.inf, WIDE_AZIMUTH)
-                attempts += n2
-                if more is not None:
-                    new_ref, status = more, "stop, replanned"
-                    splice = (stopped, stop.t1, math.inf)
-                else:
-                    problems = problems2 or problems
-        if new_ref is None:
+            if bad:
+                return None, stopped, stop
+            rest = remaining_plan(scenario, stopped, stop.t1, K)
+            return (self._attempts(stopped, stop.t1, list(windows), rest, settings, 2, math.inf,
+                                   WIDE_AZIMUTH, rest_rng, engine), stopped, stop)
+
+        if at_rest:
+            first, second = moving(self.engine), None
+        elif self._workers > 1:
+            with ThreadPoolExecutor(2) as pool:
+                later = pool.submit(from_rest, self._solo)
+                first = moving(self._solo)
+                second = later.result()
+        else:
+            first = moving(self.engine)
+            second = from_rest(self.engine) if first.ref is None else None
+        rest = second[0] if second is not None else None
+        spent = first.spent + (rest.spent if rest is not None else 0)
+        tries = first.tries + (rest.tries if rest is not None else 0)
+        chosen, status, splice = first, "replanned", (ref, t_s, MAX_STRETCH)
+        if first.ref is None and rest is not None:
+            if rest.ref is not None:
+                chosen, status, splice = rest, "stop, replanned", (second[1], second[2].t1, math.inf)
+            else:
+                chosen = replace(rest, problems=rest.problems or first.problems)
+        used = sorted(set(chosen.windows))
+        if chosen.ref is None:
             moved, status = self._sidestep(ref, t_s) if at_rest else (None, "")
             new_ref, status = (moved, status) if moved is not None else self._stop(ref, t_now, t_s)
             record = ReplanRecord(t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s,
-                                  self._spent, attempts, problems=tuple(problems[:5]), windows=tuple(windows),
+                                  spent, tries, problems=tuple(chosen.problems[:5]), windows=tuple(used),
                                   state_error_m=error)
             return new_ref, self._keep(record)
-        new_ref, cert = self._certified(new_ref, out.plan, sub, settings, splice)
+        new_ref, cert, more = self._certified(chosen.ref, chosen.out.plan, chosen.sub, settings, splice,
+                                              chosen.azimuth)
         record = ReplanRecord(
-            t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s, self._spent, attempts,
+            t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s, spent + more, tries,
             tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, (),
-            tuple(windows), error)
+            tuple(used), error)
         return new_ref, self._keep(record)
 
     def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario, settings: Any,
-                   splice: tuple[Reference, float, float]) -> tuple[Reference, Any]:
-        """Certify ``plan`` (spliced as ``new_ref``); while a certificate finds a better reply
-        and ``certify_rounds`` allow, adopt the worst UAV's reply when the plan stays feasible,
-        its timing from ``splice`` = ``(base, t0, max_stretch)`` meets the limits and it passes
-        the in-time check, then certify again. One UAV's better reply can widen the others' gaps
-        (best-response dynamics need not settle in a few steps), so the plan returned is the
-        certified one with the least largest relative gap: never worse than the first. Returns
-        that plan's reference and its certificate."""
+                   splice: tuple[Reference, float, float], azimuth: float) -> tuple[Reference, Any, int]:
+        """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
+        while a certificate finds a better reply and ``certify_rounds`` allow, adopt the worst
+        UAV's reply when the plan stays feasible, its timing from ``splice`` = ``(base, t0,
+        max_stretch)`` meets the limits and it passes the in-time check, then certify again. One
+        UAV's better reply can widen the others' gaps (best-response dynamics need not settle in a
+        few steps), so the plan returned is the certified one with the least largest relative
+        gap: never worse than the first. Returns that plan's reference, its certificate and the
+        path evaluations spent."""
         cfg = self.config
         model = CostModel.from_scenario(sub)
         base, t0, max_stretch = splice
-        runner, workers = side_by_side(self.engine)
         options = CertifyOptions(cfg.certify_particles, cfg.certify_iterations, cfg.epsilon)
         search = check_search(settings, options, "re-plan settings")  # once for every round
         best: tuple[Reference, Any] | None = None
+        spent = 0
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, search, options, int(self.rng.integers(2**31)))
-            cert = certify_plan(request, runner=runner, azimuth=self._azimuth, workers=workers)
-            self._spent += sum(u.evaluations for u in cert.uavs)
+            cert = certify_plan(request, runner=self._runner, azimuth=azimuth, workers=self._workers)
+            spent += sum(u.evaluations for u in cert.uavs)
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)
             worst = cert.uavs[cert.worst] if cert.uavs else None
@@ -302,14 +357,14 @@ class Replanner:
             candidate = plan.copy()
             candidate[cert.worst] = worst.deviation
             c = evaluate(model, candidate[None])
-            self._spent += 1
+            spent += 1
             if c.total_violation[0] > 0:
                 break
             spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch)
             if spliced is None:
                 break
             plan, new_ref = candidate, spliced
-        return best
+        return best[0], best[1], spent
 
     def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float
                 ) -> tuple[Reference | None, list[str], list[tuple[str, float, float]] | None]:
@@ -350,14 +405,12 @@ class Replanner:
                 break
         return best[0], best[1], best[2]
 
-    def _attempts(self, base: Reference, t0: float,
-                  windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
-                  tries: int, max_stretch: float, azimuth: float
-                  ) -> tuple[Reference | None, Any, Any, list[str], int]:
+    def _attempts(self, base: Reference, t0: float, windows: list[tuple[str, float, float]],
+                  warm: np.ndarray, settings: Any, tries: int, max_stretch: float, azimuth: float,
+                  rng: np.random.Generator, engine: Engine) -> _Attempt:
         """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
-        known motion adds its window to ``windows``), with headings within ``azimuth`` of the
-        goal direction. Returns the new plan spliced into ``base`` (``None``
-        if no plan passed), the last rounds' outcome, its scenario, the problems and the tries."""
+        known motion adds its window to ``windows``, which this call owns), with headings within
+        ``azimuth`` of the goal direction, drawing from ``rng`` and searching with ``engine``."""
         scenario, cfg = self.scenario, self.config
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
         starts = to_xyh(scenario, state[0])
@@ -366,28 +419,24 @@ class Replanner:
         cyl, prm = self.known.shapes()
         problems: list[str] = []
         out = sub = None
-        self._azimuth = azimuth
+        spent = 0
         for attempt in range(1, tries + 1):
             sub = self._problem(starts, cyl, prm, windows)
             model = CostModel.from_scenario(sub)
-            out = best_response_rounds(model, warm, settings, self.rng, self.engine.run_swarm,
-                                       self.engine.evaluate, budget, 0, repair=True,
-                                       reply_start=cfg.reply_start, azimuth=azimuth)
-            self._spent += out.evaluations
+            out = best_response_rounds(model, warm, settings, rng, engine.run_swarm, engine.evaluate,
+                                       budget, 0, repair=True, reply_start=cfg.reply_start, azimuth=azimuth)
+            spent += out.evaluations
             warm = out.plan
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
                 problems = ["no feasible plan from the switch state"]
                 continue
             new_ref, problems, found = self._splice(base, t0, sub, out.plan, max_stretch)
-            if new_ref is not None:
-                return new_ref, out, sub, [], attempt
-            if found is None:  # the timing itself failed
-                return None, out, sub, problems, attempt
-            new = [w for w in found if not any(covers(o, w) for o in windows)]
-            if not new:
-                return None, out, sub, problems, attempt  # not a motion's window: no retry helps
+            done = new_ref is not None or found is None  # passed, or the timing itself failed
+            new = [] if done else [w for w in found if not any(covers(o, w) for o in windows)]
+            if done or not new:  # no new motion's window: no retry helps
+                return _Attempt(new_ref, out, sub, problems, attempt, spent, azimuth, windows)
             windows.extend((n, max(t0, a - cfg.window_pad), b + cfg.window_pad) for n, a, b in new)
-        return None, out, sub, problems, tries
+        return _Attempt(None, out, sub, problems, tries, spent, azimuth, windows)
 
     def _sidestep(self, ref: Reference, t_s: float) -> tuple[Reference | None, str]:
         """A team hovering where a known motion will pass: move the whole formation (one rigid
@@ -419,15 +468,19 @@ class Replanner:
     def _stop(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, str]:
         """The fallback: a synchronised stop at the switch time within ``max_acceleration``; if
         that stop (along the current paths) would come closer than the hard clearance to
-        something known, an emergency stop at once (``t_now``) with twice the acceleration and
-        the braking warp (:func:`~staghunt.flight.reference.brake_warp`), if that keeps more
-        clearance. Returns the reference and ``"stop"`` / ``"emergency stop"``."""
+        something known, an emergency stop at once (``t_now``) with the braking warp
+        (:func:`~staghunt.flight.reference.brake_warp`) at the first of
+        :data:`EMERGENCY_FACTORS` times the acceleration that passes the in-time check, or else
+        the stop that keeps the most clearance. Returns the reference and ``"stop"`` /
+        ``"emergency stop"``."""
         limits = self.scenario.vehicle
         if ref.piece_at(t_s).kind == "stop":
             return ref, "stop"
         options = []
-        for status, t0, lim in (("stop", t_s, limits),
-                                ("emergency stop", t_now, replace(limits, max_acceleration=2 * limits.max_acceleration))):
+        tries = [("stop", t_s, limits)] + [
+            ("emergency stop", t_now, replace(limits, max_acceleration=f * limits.max_acceleration))
+            for f in EMERGENCY_FACTORS]
+        for status, t0, lim in tries:
             piece = stop_piece(ref, t0, lim, brake=status == "emergency stop")
             cand = ref.spliced(piece)
             problems, _, least = check_piece(self.scenario, self.known, self.dyn, cand, t0, piece.t1 + 1.0)
@@ -442,8 +495,8 @@ class Replanner:
         """The scenario the team solves: known obstacles plus the swept stand-ins of the windows,
         ``d_s`` grown by :data:`SEPARATION_MARGIN`.
         If a UAV's switch position is already closer than the hard clearance to an obstacle (a
-        stop short of a pop-up), the clearance of this problem is relaxed to what it has less half
-        the hard clearance, so that a path away from it exists: every leg of the encoding heads
+        stop short of a pop-up), the clearance of this problem is relaxed to :data:`RELAX_KEEP`
+        of what it has, so that a path away from it exists: every leg of the encoding heads
         within 45 degrees of the direction to the goal, so a first leg leaving an obstacle just
         ahead must graze it."""
         sub = sub_scenario(self.scenario, starts, cyl, prm)
@@ -454,7 +507,7 @@ class Replanner:
         r = np.array([u.radius for u in sub.team])
         have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
         if have < sub.costs.min_clearance:
-            relaxed = max(0.0, have - 0.5 * self.scenario.costs.min_clearance)
+            relaxed = RELAX_KEEP * max(0.0, have)
             sub = replace(sub, costs=replace(sub.costs, min_clearance=relaxed))
         return sub
 
