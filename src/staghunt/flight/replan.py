@@ -331,8 +331,9 @@ class Replanner:
     def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario, settings: Any,
                    splice: tuple[Reference, float, float], azimuth: float) -> tuple[Reference, Any, int]:
         """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
-        while a certificate finds a better reply and ``certify_rounds`` allow, adopt the worst
-        UAV's reply when the plan stays feasible, its timing from ``splice`` = ``(base, t0,
+        while a certificate finds a better reply and ``certify_rounds`` allow, adopt the reply
+        of the UAV with the largest gap (or, if that one fails, the next largest beyond
+        epsilon) with which the plan stays feasible, its timing from ``splice`` = ``(base, t0,
         max_stretch)`` meets the limits and it passes the in-time check, then certify again. One
         UAV's better reply can widen the others' gaps (best-response dynamics need not settle in a
         few steps), so the plan returned is the certified one with the least largest relative
@@ -351,19 +352,25 @@ class Replanner:
             spent += sum(u.evaluations for u in cert.uavs)
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)
-            worst = cert.uavs[cert.worst] if cert.uavs else None
-            if cert.is_equilibrium or round_ == cfg.certify_rounds or worst is None or worst.deviation is None:
+            if cert.is_equilibrium or round_ == cfg.certify_rounds:
                 break
-            candidate = plan.copy()
-            candidate[cert.worst] = worst.deviation
-            c = evaluate(model, candidate[None])
-            spent += 1
-            if c.total_violation[0] > 0:
+            adopted = None
+            for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative):
+                reply = cert.uavs[n]
+                if reply.relative <= cfg.epsilon or reply.deviation is None:
+                    break
+                candidate = plan.copy()
+                candidate[n] = reply.deviation
+                spent += 1
+                if evaluate(model, candidate[None]).total_violation[0] > 0:
+                    continue
+                spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch)
+                if spliced is not None:  # else the next-worst UAV's reply
+                    adopted = (candidate, spliced)
+                    break
+            if adopted is None:
                 break
-            spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch)
-            if spliced is None:
-                break
-            plan, new_ref = candidate, spliced
+            plan, new_ref = adopted
         return best[0], best[1], spent
 
     def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float
