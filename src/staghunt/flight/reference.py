@@ -12,7 +12,8 @@ A piece is either
   velocity and acceleration) and ends at rest. Times come from a speed profile
   (:func:`knot_times`: cruise speed, slower in turns, accelerations within half the limit),
   and if a peak still breaks ``max_speed`` or ``max_acceleration`` (norms, checked on a 20 ms
-  grid) the whole schedule is stretched; or
+  grid) the knot intervals where it does (and their neighbours) are slowed down, so a sharp
+  turn at the start of a re-plan slows the start, not the whole flight; or
 - a **synchronised stop** (:func:`stop_piece`): the previous piece with time slowed down by
   one common warp ``tau(t)``, ``tau' = 1 - (3u^2 - 2u^3)``, ``u = (t - t_s) / T``: every UAV
   stays on its planned path (so the separations and clearances already checked still hold),
@@ -136,11 +137,19 @@ class Reference:
         return Reference(keep + (piece,))
 
 
-def _peaks(spline: BSpline, t0: float, t1: float) -> tuple[float, float]:
+def _peaks(spline: BSpline, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(M - 1,)`` each: the peak speed and acceleration (norms, over the team) of ``spline``
+    on each knot interval of ``times`` ``(M,)``, sampled every :data:`CHECK_STEP_S`."""
+    t0, t1 = float(times[0]), float(times[-1])
     t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
-    v = np.linalg.norm(spline(t, nu=1), axis=-1).max()
-    a = np.linalg.norm(spline(t, nu=2), axis=-1).max()
-    return float(v), float(a)
+    v = np.linalg.norm(spline(t, nu=1), axis=-1).max(axis=1)  # (T,)
+    a = np.linalg.norm(spline(t, nu=2), axis=-1).max(axis=1)
+    k = np.clip(np.searchsorted(times, t, side="right") - 1, 0, times.size - 2)
+    vk = np.zeros(times.size - 1)
+    ak = np.zeros(times.size - 1)
+    np.maximum.at(vk, k, v)
+    np.maximum.at(ak, k, a)
+    return vk, ak
 
 
 def _quintic(times: np.ndarray, points: np.ndarray, v0: np.ndarray, a0: np.ndarray) -> BSpline:
@@ -186,14 +195,15 @@ DENSE_SPACING = 3.0
 
 def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                v0: np.ndarray | None = None, a0: np.ndarray | None = None,
-               max_tries: int = 12, max_stretch: float = math.inf) -> Piece:
+               max_tries: int = 20, max_stretch: float = math.inf) -> Piece:
     """Time the team's paths ``points`` ``(N, M, 3)`` (absolute; ``points[:, 0]`` the state at
     ``t0``) starting with velocities ``v0`` and accelerations ``a0`` ``(N, 3)`` (default rest).
 
     The paths are densified (:func:`~staghunt.trajectory.timing.split_legs`), timed by :func:`knot_times`, interpolated by a
     quintic spline with the start and end conditions, and, if a peak on the check grid still
-    breaks a limit, the whole schedule is stretched. Raises ``ValueError`` if no stretch up to
-    ``max_stretch`` within ``max_tries`` meets the limits (the imposed start itself breaks
+    breaks a limit, the knot intervals where it does (and their neighbours) are stretched.
+    Raises ``ValueError`` if no schedule whose duration is at most ``max_stretch`` times the
+    first one meets the limits within ``max_tries`` (the imposed start itself breaks
     them: a UAV moving at speed cannot turn sharply at once, whatever the schedule after)."""
     p = np.asarray(points, dtype=float)
     N = p.shape[0]
@@ -208,14 +218,23 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     v_lim = MARGIN * limits.max_speed
     # The switch state's own acceleration cannot be undone by a slower schedule.
     a_lim = max(MARGIN * limits.max_acceleration, 1.02 * float(np.linalg.norm(a0, axis=-1).max()))
+    dt = np.diff(base)
+    total = float(base[-1])
     stretch = 1.0
     for _ in range(max_tries):
-        times = t0 + base * stretch
+        times = t0 + np.concatenate([[0.0], np.cumsum(dt)])
         spline = _quintic(times, dense, v0, a0)
-        v, a = _peaks(spline, times[0], times[-1])
+        vk, ak = _peaks(spline, times)
+        v, a = float(vk.max()), float(ak.max())
         if v <= v_lim and a <= a_lim:
             return Piece("path", float(times[0]), float(times[-1]), times, dense, spline=spline)
-        stretch *= max(1.05, min(2.0, max(v / v_lim, math.sqrt(a / a_lim))))
+        # Slow down where a limit is broken (and one interval on each side), not everywhere: a
+        # sharp turn at the start of a re-plan slows the start, not the whole flight.
+        over = np.maximum(vk / v_lim, np.sqrt(ak / a_lim))
+        factor = np.where(over > 1.0, np.clip(over, 1.05, 2.0), 1.0)
+        factor = np.maximum(factor, np.maximum(np.r_[factor[1:], 1.0], np.r_[1.0, factor[:-1]]))
+        dt = dt * factor
+        stretch = float(dt.sum()) / total
         if stretch > max_stretch:
             break
     raise ValueError(f"no timing of the new paths keeps speed <= {limits.max_speed:g} m/s and "

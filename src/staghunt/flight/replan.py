@@ -66,6 +66,8 @@ MAX_DELAY_S = 60
 MAX_STRETCH = 2.0
 """A plan from a moving switch state that must be slowed more than this to meet the limits
 (a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
+LEAD_IN_MIN_SPEED = 0.5
+"""m/s: below this the switch state counts as at rest for the lead-in (:meth:`Replanner._lead_in`)."""
 RELAX_KEEP = 0.8
 """A UAV that rests closer than the hard clearance to an obstacle (an emergency stop short of a
 pop-up) re-plans with the clearance relaxed to this share of what it has: its paths may leave
@@ -281,9 +283,11 @@ class Replanner:
             error = float(np.linalg.norm(predicted - ref.state(np.array([t_s]))[0][:, 0], axis=-1).max())
         at_rest = ref.piece_at(t_s).kind == "stop"
 
+        lead = None if at_rest else self._lead_in(ref, t_s)
+
         def moving(engine: Engine) -> _Attempt:
             return self._attempts(ref, t_s, list(windows), warm, settings, cfg.attempts, MAX_STRETCH,
-                                  WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine)
+                                  WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine, lead)
 
         def from_rest(engine: Engine) -> tuple[_Attempt | None, Reference, Piece]:
             stopped, stop, bad = self._stop_short(ref, t_now, t_s)
@@ -306,10 +310,10 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
-        chosen, status, splice = first, "replanned", (ref, t_s, MAX_STRETCH)
+        chosen, status, splice = first, "replanned", (ref, t_s, MAX_STRETCH, lead)
         if first.ref is None and rest is not None:
             if rest.ref is not None:
-                chosen, status, splice = rest, "stop, replanned", (second[1], second[2].t1, math.inf)
+                chosen, status, splice = rest, "stop, replanned", (second[1], second[2].t1, math.inf, None)
             else:
                 chosen = replace(rest, problems=rest.problems or first.problems)
         used = sorted(set(chosen.windows))
@@ -329,7 +333,8 @@ class Replanner:
         return new_ref, self._keep(record)
 
     def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario, settings: Any,
-                   splice: tuple[Reference, float, float], azimuth: float) -> tuple[Reference, Any, int]:
+                   splice: tuple[Reference, float, float, np.ndarray | None], azimuth: float
+                   ) -> tuple[Reference, Any, int]:
         """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
         while a certificate finds a better reply and ``certify_rounds`` allow, adopt the reply
         of the UAV with the largest gap (or, if that one fails, the next largest beyond
@@ -341,7 +346,7 @@ class Replanner:
         path evaluations spent."""
         cfg = self.config
         model = CostModel.from_scenario(sub)
-        base, t0, max_stretch = splice
+        base, t0, max_stretch, lead = splice
         options = CertifyOptions(cfg.certify_particles, cfg.certify_iterations, cfg.epsilon)
         search = check_search(settings, options, "re-plan settings")  # once for every round
         best: tuple[Reference, Any] | None = None
@@ -364,7 +369,7 @@ class Replanner:
                 spent += 1
                 if evaluate(model, candidate[None]).total_violation[0] > 0:
                     continue
-                spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch)
+                spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch, lead)
                 if spliced is not None:  # else the next-worst UAV's reply
                     adopted = (candidate, spliced)
                     break
@@ -373,7 +378,8 @@ class Replanner:
             plan, new_ref = adopted
         return best[0], best[1], spent
 
-    def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float
+    def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float,
+                lead: np.ndarray | None = None
                 ) -> tuple[Reference | None, list[str], list[tuple[str, float, float]] | None]:
         """``plan`` ``(N, K, 3)`` of ``sub`` timed from ``base``'s state at ``t0`` and spliced
         into ``base``. Returns the new reference if its timing meets the limits within
@@ -382,7 +388,8 @@ class Replanner:
         scenario = self.scenario
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
         goals = to_absolute(scenario.world.terrain, scenario.goals()[:, None])
-        absolute = np.concatenate([state[0][:, None], to_absolute(sub.world.terrain, plan), goals], axis=1)
+        head = state[0][:, None] if lead is None else np.stack([state[0], lead], axis=1)
+        absolute = np.concatenate([head, to_absolute(sub.world.terrain, plan), goals], axis=1)
         try:
             piece = timed_path(absolute, t0, scenario.vehicle, state[1], state[2], max_stretch=max_stretch)
         except ValueError as exc:
@@ -390,6 +397,25 @@ class Replanner:
         new_ref = base.spliced(piece)
         problems, found, _ = check_piece(sub, self.known, self.dyn, new_ref, t0, piece.t1)
         return (None, problems, found) if problems else (new_ref, [], found)
+
+    def _lead_in(self, ref: Reference, t_s: float) -> np.ndarray | None:
+        """``(N, 3)`` absolute lead-in points of a re-plan from a moving state: each UAV goes on
+        along its velocity at the switch for the distance it needs to stop at
+        ``max_acceleration`` (``|v|^2 / 2 a``), where the new plan starts. A UAV at speed cannot
+        turn at once; along the lead-in it slows to the speed of the new path's first turn.
+        ``None`` when the team is nearly at rest or a lead-in point leaves the site."""
+        state = ref.state(np.array([t_s]))[:, :, 0]  # (4, N, 3)
+        v = state[1]
+        speed = np.linalg.norm(v, axis=-1)
+        if speed.max() < LEAD_IN_MIN_SPEED:
+            return None
+        d = speed**2 / (2.0 * self.scenario.vehicle.max_acceleration)
+        lead = state[0] + v / np.maximum(speed, 1e-9)[:, None] * d[:, None]
+        b = self.scenario.world.bounds
+        xyh = to_xyh(self.scenario, lead)
+        if np.any(xyh < np.asarray(b.lower)) or np.any(xyh > np.asarray(b.upper)):
+            return None
+        return lead
 
     def _stop_short(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, Piece, bool]:
         """The stop before a plan from rest: at the switch time within ``max_acceleration``, or,
@@ -414,13 +440,15 @@ class Replanner:
 
     def _attempts(self, base: Reference, t0: float, windows: list[tuple[str, float, float]],
                   warm: np.ndarray, settings: Any, tries: int, max_stretch: float, azimuth: float,
-                  rng: np.random.Generator, engine: Engine) -> _Attempt:
+                  rng: np.random.Generator, engine: Engine, lead: np.ndarray | None = None) -> _Attempt:
         """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
         known motion adds its window to ``windows``, which this call owns), with headings within
-        ``azimuth`` of the goal direction, drawing from ``rng`` and searching with ``engine``."""
+        ``azimuth`` of the goal direction, drawing from ``rng`` and searching with ``engine``.
+        ``lead``: ``(N, 3)`` lead-in points (:meth:`_lead_in`): the game is solved from them and
+        the paths flown from the switch state through them."""
         scenario, cfg = self.scenario, self.config
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
-        starts = to_xyh(scenario, state[0])
+        starts = to_xyh(scenario, state[0] if lead is None else lead)
         N = scenario.n_uavs
         budget = settings.particles * (settings.iterations + 1) * N
         cyl, prm = self.known.shapes()
@@ -437,7 +465,7 @@ class Replanner:
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
                 problems = ["no feasible plan from the switch state"]
                 continue
-            new_ref, problems, found = self._splice(base, t0, sub, out.plan, max_stretch)
+            new_ref, problems, found = self._splice(base, t0, sub, out.plan, max_stretch, lead)
             done = new_ref is not None or found is None  # passed, or the timing itself failed
             new = [] if done else [w for w in found if not any(covers(o, w) for o in windows)]
             if done or not new:  # no new motion's window: no retry helps
