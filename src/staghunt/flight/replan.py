@@ -6,7 +6,8 @@ reported beside it). From the team's reference state at ``t_s`` (position, veloc
 acceleration: the splice is continuous in all three) it
 
 1. builds the problem the team knows at ``t_s``: the scenario's goals, the UAVs' switch
-   positions as starts, the static obstacles, the sensed ones (:class:`KnownWorld`), and the
+   positions as starts (moving: their lead-in points, each UAV's stopping distance ahead along
+   its velocity, :meth:`Replanner._lead_in`), the static obstacles, the sensed ones (:class:`KnownWorld`), and the
    swept volumes of the known motions over the time windows where a conflict was predicted;
 2. warm-starts the game from the current plan (the rest of the reference resampled to ``K``
    free waypoints) and runs the best-response rounds
@@ -18,7 +19,9 @@ acceleration: the splice is continuous in all three) it
    the team solves again, up to ``attempts`` times;
 4. certifies the accepted plan (each UAV's Nash gap, :func:`staghunt.solvers.response.certify_plan`).
 
-If no attempt gives a plan that passes, the team stops: a synchronised stop to hover
+From a moving state the same is solved from rest after a synchronised stop, side by side on
+two cores (or only if the moving one fails, on one), and flown if the moving one fails. If
+neither gives a plan that passes, the team stops: a synchronised stop to hover
 (:func:`~staghunt.flight.reference.stop_piece`), after which it re-plans with
 ``stop_budget_factor`` times the budget.
 """
@@ -26,6 +29,7 @@ If no attempt gives a plan that passes, the team stops: a synchronised stop to h
 from __future__ import annotations
 
 import math
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
@@ -215,6 +219,10 @@ class ReplanRecord:
         }
 
 
+class _Cancelled(Exception):
+    """Raised inside a solve that is no longer needed (:meth:`Replanner._attempts`)."""
+
+
 @dataclass(frozen=True)
 class _Attempt:
     """What :meth:`Replanner._attempts` found: the new plan spliced into its base (``ref``,
@@ -289,20 +297,24 @@ class Replanner:
             return self._attempts(ref, t_s, list(windows), warm, settings, cfg.attempts, MAX_STRETCH,
                                   WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine, lead)
 
-        def from_rest(engine: Engine) -> tuple[_Attempt | None, Reference, Piece]:
+        def from_rest(engine: Engine, cancel: threading.Event | None = None
+                      ) -> tuple[_Attempt | None, Reference, Piece]:
             stopped, stop, bad = self._stop_short(ref, t_now, t_s)
             if bad:
                 return None, stopped, stop
             rest = remaining_plan(scenario, stopped, stop.t1, K)
             return (self._attempts(stopped, stop.t1, list(windows), rest, settings, 2, math.inf,
-                                   WIDE_AZIMUTH, rest_rng, engine), stopped, stop)
+                                   WIDE_AZIMUTH, rest_rng, engine, cancel=cancel), stopped, stop)
 
         if at_rest:
             first, second = moving(self.engine), None
         elif self._workers > 1:
-            with ThreadPoolExecutor(2) as pool:
-                later = pool.submit(from_rest, self._solo)
+            cancel = threading.Event()
+            with ThreadPoolExecutor(1) as pool:
+                later = pool.submit(from_rest, self._solo, cancel)
                 first = moving(self._solo)
+                if first.ref is not None:  # the plan from rest is not needed: stop it
+                    cancel.set()
                 second = later.result()
         else:
             first = moving(self.engine)
@@ -440,12 +452,15 @@ class Replanner:
 
     def _attempts(self, base: Reference, t0: float, windows: list[tuple[str, float, float]],
                   warm: np.ndarray, settings: Any, tries: int, max_stretch: float, azimuth: float,
-                  rng: np.random.Generator, engine: Engine, lead: np.ndarray | None = None) -> _Attempt:
+                  rng: np.random.Generator, engine: Engine, lead: np.ndarray | None = None,
+                  cancel: threading.Event | None = None) -> _Attempt:
         """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
         known motion adds its window to ``windows``, which this call owns), with headings within
         ``azimuth`` of the goal direction, drawing from ``rng`` and searching with ``engine``.
         ``lead``: ``(N, 3)`` lead-in points (:meth:`_lead_in`): the game is solved from them and
-        the paths flown from the switch state through them."""
+        the paths flown from the switch state through them. ``cancel``: once set, the solve
+        stops after the reply in progress and returns no plan (its evaluations counted up to
+        its last complete solve)."""
         scenario, cfg = self.scenario, self.config
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
         starts = to_xyh(scenario, state[0] if lead is None else lead)
@@ -455,11 +470,19 @@ class Replanner:
         problems: list[str] = []
         out = sub = None
         spent = 0
+        def stop_if_cancelled(_spent: int, _J: np.ndarray) -> None:
+            if cancel is not None and cancel.is_set():
+                raise _Cancelled
+
         for attempt in range(1, tries + 1):
             sub = self._problem(starts, cyl, prm, windows)
             model = CostModel.from_scenario(sub)
-            out = best_response_rounds(model, warm, settings, rng, engine.run_swarm, engine.evaluate,
-                                       budget, 0, repair=True, reply_start=cfg.reply_start, azimuth=azimuth)
+            try:
+                out = best_response_rounds(model, warm, settings, rng, engine.run_swarm, engine.evaluate,
+                                           budget, 0, stop_if_cancelled, repair=True,
+                                           reply_start=cfg.reply_start, azimuth=azimuth)
+            except _Cancelled:
+                return _Attempt(None, out, sub, ["cancelled"], attempt, spent, azimuth, windows)
             spent += out.evaluations
             warm = out.plan
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
