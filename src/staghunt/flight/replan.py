@@ -7,8 +7,8 @@ acceleration: the splice is continuous in all three) it
 
 1. builds the problem the team knows at ``t_s``: the scenario's goals, the UAVs' switch
    positions as starts (moving: their lead-in points, each UAV's stopping distance ahead along
-   its velocity, :meth:`Replanner._lead_in`), the static obstacles, the sensed ones (:class:`KnownWorld`), and the
-   swept volumes of the known motions over the time windows where a conflict was predicted;
+   its velocity, :meth:`Replanner._lead_in`), the static obstacles, the sensed ones
+   (:class:`KnownWorld`), and the swept volumes of the known motions over the time windows where a conflict was predicted;
 2. warm-starts the game from the current plan (the rest of the reference resampled to ``K``
    free waypoints) and runs the best-response rounds
    (:func:`staghunt.solvers.game.best_response_rounds`, ``repair``: a warm plan cut by the new
@@ -415,7 +415,8 @@ class Replanner:
         along its velocity at the switch for the distance it needs to stop at
         ``max_acceleration`` (``|v|^2 / 2 a``), where the new plan starts. A UAV at speed cannot
         turn at once; along the lead-in it slows to the speed of the new path's first turn.
-        ``None`` when the team is nearly at rest or a lead-in point leaves the site."""
+        ``None`` when the team is nearly at rest, or a lead-in leaves the site or comes closer
+        than the hard clearance to an obstacle known (the plan then starts at the switch state)."""
         state = ref.state(np.array([t_s]))[:, :, 0]  # (4, N, 3)
         v = state[1]
         speed = np.linalg.norm(v, axis=-1)
@@ -427,7 +428,10 @@ class Replanner:
         xyh = to_xyh(self.scenario, lead)
         if np.any(xyh < np.asarray(b.lower)) or np.any(xyh > np.asarray(b.upper)):
             return None
-        return lead
+        along = state[0][:, None] + (lead - state[0])[:, None] * np.linspace(0.0, 1.0, 9)[None, :, None]
+        r = np.array([u.radius for u in self.scenario.team])
+        clear = static_clearance(*self.known.shapes(), along, r)  # (N, 9)
+        return None if np.any(clear < self.scenario.costs.min_clearance) else lead
 
     def _stop_short(self, ref: Reference, t_now: float, t_s: float) -> tuple[Reference, Piece, bool]:
         """The stop before a plan from rest: at the switch time within ``max_acceleration``, or,
@@ -470,6 +474,7 @@ class Replanner:
         problems: list[str] = []
         out = sub = None
         spent = 0
+
         def stop_if_cancelled(_spent: int, _J: np.ndarray) -> None:
             if cancel is not None and cancel.is_set():
                 raise _Cancelled
