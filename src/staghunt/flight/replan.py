@@ -348,10 +348,12 @@ class Replanner:
                    splice: tuple[Reference, float, float, np.ndarray | None], azimuth: float
                    ) -> tuple[Reference, Any, int]:
         """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
-        while a certificate finds a better reply and ``certify_rounds`` allow, adopt the reply
-        of the UAV with the largest gap (or, if that one fails, the next largest beyond
-        epsilon) with which the plan stays feasible, its timing from ``splice`` = ``(base, t0,
-        max_stretch)`` meets the limits and it passes the in-time check, then certify again. One
+        while a certificate finds better replies and ``certify_rounds`` allow, adopt them and
+        certify again: every reply in turn (largest gap first) that still gains more than
+        epsilon with the replies already kept and keeps the plan feasible, if that keeps more
+        than one and the plan's timing from ``splice`` = ``(base, t0, max_stretch, lead)``
+        meets the limits and passes the in-time check; else the reply of the UAV with the
+        largest gap with which the plan does (or the next largest beyond epsilon). One
         UAV's better reply can widen the others' gaps (best-response dynamics need not settle in a
         few steps), so the plan returned is the certified one with the least largest relative
         gap: never worse than the first. Returns that plan's reference, its certificate and the
@@ -371,13 +373,26 @@ class Replanner:
                 best = (new_ref, cert)
             if cert.is_equilibrium or round_ == cfg.certify_rounds:
                 break
+            order = [n for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative)
+                     if cert.uavs[n].relative > cfg.epsilon and cert.uavs[n].deviation is not None]
             adopted = None
-            for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative):
-                reply = cert.uavs[n]
-                if reply.relative <= cfg.epsilon or reply.deviation is None:
-                    break
+            if len(order) > 1:
+                # every reply in turn, kept if it still gains more than epsilon after those kept
+                team, J = plan.copy(), evaluate(model, plan[None]).total[0]
+                taken = 0
+                for n in order:
+                    candidate = team.copy()
+                    candidate[n] = cert.uavs[n].deviation
+                    c = evaluate(model, candidate[None])
+                    spent += 1
+                    if c.total_violation[0] == 0 and c.total[0][n] < (1 - cfg.epsilon) * J[n]:
+                        team, J, taken = candidate, c.total[0], taken + 1
+                if taken > 1:
+                    spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
+                    adopted = (team, spliced) if spliced is not None else None
+            for n in order if adopted is None else ():
                 candidate = plan.copy()
-                candidate[n] = reply.deviation
+                candidate[n] = cert.uavs[n].deviation
                 spent += 1
                 if evaluate(model, candidate[None]).total_violation[0] > 0:
                     continue
