@@ -307,6 +307,7 @@ def test_popup_on_the_next_leg_triggers_a_replan_and_the_flight_stays_clear(calm
     r = fly(SMALL, events=dyn, seed=0)
     assert r.replans and r.replans[0].trigger.startswith("sensed popup")
     assert r.replans[0].switch_time == pytest.approx(r.replans[0].time + 0.3)
+    assert r.replans[0].status == "replanned" and r.stops == 0  # a swerve after the lead-in, no stop
     solved = [x for x in r.replans if x.solved]
     assert solved and solved[0].nash_gaps and solved[0].evaluations > 0
     assert 0 <= solved[0].state_error_m < 0.5
