@@ -8,7 +8,8 @@ acceleration: the splice is continuous in all three) it
 1. builds the problem the team knows at ``t_s``: the scenario's goals, the UAVs' switch
    positions as starts (moving: their lead-in points, each UAV's stopping distance ahead along
    its velocity, :meth:`Replanner._lead_in`), the static obstacles, the sensed ones
-   (:class:`KnownWorld`), and the swept volumes of the known motions over the time windows where a conflict was predicted;
+   (:class:`KnownWorld`), and the swept volumes of the known motions over the time windows
+   where a conflict was predicted;
 2. warm-starts the game from the current plan (the rest of the reference resampled to ``K``
    free waypoints) and runs the best-response rounds
    (:func:`staghunt.solvers.game.best_response_rounds`, ``repair``: a warm plan cut by the new
@@ -390,16 +391,17 @@ class Replanner:
                 if taken > 1:
                     spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
                     adopted = (team, spliced) if spliced is not None else None
-            for n in order if adopted is None else ():
-                candidate = plan.copy()
-                candidate[n] = cert.uavs[n].deviation
-                spent += 1
-                if evaluate(model, candidate[None]).total_violation[0] > 0:
-                    continue
-                spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch, lead)
-                if spliced is not None:  # else the next-worst UAV's reply
-                    adopted = (candidate, spliced)
-                    break
+            if adopted is None:  # one reply: the largest gap that can be flown
+                for n in order:
+                    candidate = plan.copy()
+                    candidate[n] = cert.uavs[n].deviation
+                    spent += 1
+                    if evaluate(model, candidate[None]).total_violation[0] > 0:
+                        continue
+                    spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch, lead)
+                    if spliced is not None:  # else the next-worst UAV's reply
+                        adopted = (candidate, spliced)
+                        break
             if adopted is None:
                 break
             plan, new_ref = adopted
