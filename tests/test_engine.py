@@ -238,9 +238,21 @@ def single_particle_cost(problem: SwarmProblem, X0: np.ndarray) -> tuple[np.ndar
     return out.best_cost, out.best_violation
 
 
-@pytest.mark.parametrize("kind", ["players", "sum", "rigid", "fixed"])
+@pytest.mark.parametrize("kind", ["players", "sum", "rigid", "fixed", "fixed-dem"])
 def test_decoding_and_objectives_agree_with_problem(kind):
     model, problem = scenario2_problem()
+    if kind == "fixed-dem":  # a deviation search on a DEM: the fixed paths' ground, once per block
+        import dataclasses
+
+        grid = np.random.default_rng(6).random((30, 30)) * 10.0
+        grid.setflags(write=False)
+        terrain = Terrain(elevation=grid, origin=(0.0, 0.0), cell_size=7.0, sampling="bilinear")
+        def absolute(p: np.ndarray) -> np.ndarray:
+            return frozen(np.c_[p[:, :2], terrain.absolute(p[:, 0], p[:, 1], p[:, 2])])
+
+        model = dataclasses.replace(model, terrain=terrain, start_abs=absolute(model.starts),
+                                    goal_abs=absolute(model.goals))
+        kind = "fixed"
     if kind == "sum":
         problem = team_problem(model, 10, 0.5, "sum")
     elif kind == "rigid":
@@ -340,18 +352,20 @@ def test_numba_plan_keeps_the_paths_the_kernel_evaluated():
     np.testing.assert_allclose(result.costs.total[0], result.history[-1], rtol=1e-9)
 
 
+@pytest.mark.parametrize("terrain", [None, "bilinear"])
 @pytest.mark.parametrize("radii", [None, (1.0, 2.5, 0.5, 1.0, 3.0, 1.0)])
 @pytest.mark.parametrize("n_uavs", [3, 6])
-def test_deviation_costs_match_the_full_evaluation(n_uavs, radii):
+def test_deviation_costs_match_the_full_evaluation(n_uavs, radii, terrain):
     """The compiled deviation evaluation (``MODE_DEVIATE``, used by ``game``'s polish) gives the
     full evaluation's ``J_n`` bit for bit and ``inf`` exactly where its total violation is not
     zero, for paths that hit team-mates (different radii: a deficit seen by one UAV only),
-    obstacles and the ground, with and without pair pruning (N > 4)."""
+    obstacles and the ground, with and without pair pruning (N > 4), on flat ground and on a
+    DEM (the fixed team-mates' ground looked up once per block)."""
     import dataclasses
 
     from staghunt.solvers.game import _own_costs
 
-    model = make_model(n_uavs)
+    model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
     # No cylinder: the straight start-goal lines (10 m apart) are a feasible plan.
     model = dataclasses.replace(model, cylinders=frozen(np.zeros((0, 3))))
     if radii is not None:

@@ -795,8 +795,12 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
 
 
 @subroutine
-def _absolute_z(nb, px, py, ph, pz, uav, grid, par) -> None:  # noqa: ANN001
-    """Start and goal columns of the full paths, and absolute ``z`` of the free waypoints."""
+def _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo) -> None:  # noqa: ANN001
+    """Start and goal columns of the full paths, and absolute ``z`` of the free waypoints.
+    With ``solo`` (fixed paths: a deviation search or ``MODE_DEVIATE``) a UAV with
+    ``member[n] < 0`` has the same path in every lane: its ground is looked up in lane 0 only
+    and copied (the same numbers; on a DEM site the lookups of the fixed team-mates were most
+    of a deviation's cost)."""
     N, K = ph.shape[0], ph.shape[1]
     flat = par[P_TERRAIN] == 0.0
     for n in range(N):
@@ -806,10 +810,13 @@ def _absolute_z(nb, px, py, ph, pz, uav, grid, par) -> None:  # noqa: ANN001
         _fill(px[n, K + 1], nb, uav[n, U_GOAL])
         _fill(py[n, K + 1], nb, uav[n, U_GOAL + 1])
         _fill(pz[n, K + 1], nb, uav[n, U_GOAL_Z])
+        same = solo and member[n] < 0
         for k in range(K):
             if flat:
                 for b in range(nb):
                     pz[n, k + 1, b] = ph[n, k, b] + 0.0
+            elif same:
+                _fill(pz[n, k + 1], nb, ground_z(px[n, k + 1, 0], py[n, k + 1, 0], ph[n, k, 0], grid, par))
             else:
                 for b in range(nb):
                     pz[n, k + 1, b] = ground_z(px[n, k + 1, b], py[n, k + 1, b], ph[n, k, b], grid, par)
@@ -905,8 +912,8 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     else:
         _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets,
                  fixed, par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2)
-    _absolute_z(nb, px, py, ph, pz, uav, grid, par)
     solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
+    _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo)
     for n in range(uav.shape[0]):
         if solo and member[n] < 0:  # a fixed path: its constant terms (see SOLO_STRIDE)
             base = N_PAR + SOLO_STRIDE * n
