@@ -271,7 +271,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     budget."""
     N, P = model.n_uavs, settings.particles
     plan = np.array(plan, dtype=float)
-    current = evaluate(model, plan[None])
+    current = evaluator(model, plan[None])
     J, violation = current.total[0], float(current.total_violation[0])
     replies: list[list[np.ndarray]] = [[plan[n].copy()] for n in range(N)]
     remaining = budget - spent
@@ -297,7 +297,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
             candidate = plan.copy()
             candidate[n] = out.best_waypoints[n]
             candidate, used = polish(model, candidate, n, local, evaluator)
-            c = evaluate(model, candidate[None])  # the reply judged by the reference: 1 more path
+            c = evaluator(model, candidate[None])  # the reply judged as a whole plan: 1 more path
             spent += used + 1
             new, new_violation = c.total[0], float(c.total_violation[0])
             if violation > 0:
