@@ -225,3 +225,27 @@ def test_check_certify_returns_a_checked_request_run_as_is(alone):
             check_certify(alone, _straight(50.0)[None], options, settings=settings)
         assert info.value.field == field
         assert "--" not in str(info.value)  # the library never names flags
+
+
+def test_a_carried_search_stands_for_the_uav_that_flies_its_reply(pair):
+    """After a certificate round adopts B's better reply (only B moved), the next certificate
+    keeps B's search: gap 0 from that search, no evaluation spent, a note; A is searched
+    again, exactly as a fresh certificate searches it."""
+    from staghunt.solvers.response import certify_plan
+
+    wp = np.stack([_straight(40.0), _straight(60.0)])
+    wp[1, 1, 1] += 10.0
+    first = certify_plan(pair, wp, particles=40, iterations=30, seed=2)
+    b = first.uavs[1]
+    assert b.relative > 0.5
+    moved = wp.copy()
+    moved[1] = b.deviation
+    again = certify_plan(pair, moved, particles=40, iterations=30, seed=3, carried={1: b})
+    fresh = certify_plan(pair, moved, particles=40, iterations=30, seed=3)
+    J = evaluate(CostModel.from_scenario(pair), moved[None]).total[0]
+    kept = again.uavs[1]
+    assert kept.current == J[1] and kept.evaluations == 0
+    assert kept.best == min(b.best, J[1]) and 0.0 <= kept.gap <= 1e-9 * J[1]
+    assert np.array_equal(kept.deviation, moved[1])
+    assert any("B: the others' paths are those of the previous search" in n for n in again.notes)
+    assert again.uavs[0].gap == fresh.uavs[0].gap and again.uavs[0].evaluations == fresh.uavs[0].evaluations > 0

@@ -357,7 +357,9 @@ class Replanner:
         largest gap with which the plan does (or the next largest beyond epsilon). One
         UAV's better reply can widen the others' gaps (best-response dynamics need not settle in a
         few steps), so the plan returned is the certified one with the least largest relative
-        gap: never worse than the first. Returns that plan's reference, its certificate and the
+        gap: never worse than the first. After a single reply is adopted, the next certificate
+        keeps that UAV's search (the others fly what it fixed; ``certify_plan``'s ``carried``)
+        and searches the others only. Returns that plan's reference, its certificate and the
         path evaluations spent."""
         cfg = self.config
         model = CostModel.from_scenario(sub)
@@ -366,9 +368,11 @@ class Replanner:
         search = check_search(settings, options, "re-plan settings")  # once for every round
         best: tuple[Reference, Any] | None = None
         spent = 0
+        carried: dict[int, Any] = {}
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, search, options, int(self.rng.integers(2**31)))
-            cert = certify_plan(request, runner=self._runner, azimuth=azimuth, workers=self._workers)
+            cert = certify_plan(request, runner=self._runner, azimuth=azimuth, workers=self._workers,
+                                carried=carried)
             spent += sum(u.evaluations for u in cert.uavs)
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)
@@ -391,6 +395,7 @@ class Replanner:
                 if taken > 1:
                     spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
                     adopted = (team, spliced) if spliced is not None else None
+            carried = {}
             if adopted is None:  # one reply: the largest gap that can be flown
                 for n in order:
                     candidate = plan.copy()
@@ -401,6 +406,8 @@ class Replanner:
                     spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch, lead)
                     if spliced is not None:  # else the next-worst UAV's reply
                         adopted = (candidate, spliced)
+                        # The others fly what UAV n's search fixed: that search stands for it.
+                        carried = {n: cert.uavs[n]}
                         break
             if adopted is None:
                 break

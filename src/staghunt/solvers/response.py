@@ -46,7 +46,7 @@ import math
 import threading
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Mapping
 
 import numpy as np
 
@@ -259,6 +259,7 @@ def certify_plan(
     runner: SwarmRunner = run_swarm,
     azimuth: float = ANGLE_RANGE,
     workers: int = 1,
+    carried: Mapping[int, UAVGap] | None = None,
 ) -> Certificate:
     """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
 
@@ -275,7 +276,11 @@ def certify_plan(
     range (the strategy space the plan was solved in). ``workers``: UAV searches run at once
     (threads; each search has its own generator, so the certificate is the same for any
     count; ``runner`` must then be thread-safe, e.g. a compiled engine pinned to one thread).
-    Raises :class:`RequestError` (a ``ValueError``) for unusable inputs, including
+    ``carried``: searches made for an earlier plan that stand for this one, by UAV: UAV ``n``'s
+    problem (the others' paths) is the one that search fixed, and the UAV now flies a path of
+    its own. Its search is not run again: its best deviation is compared with the plan's cost
+    (the UAV flies that search's best reply after a certificate round: gap 0), and a note says
+    so. Raises :class:`RequestError` (a ``ValueError``) for unusable inputs, including
     settings that disable the search (no velocity, no attraction): those cannot certify.
     """
     if isinstance(scenario, CertifyRequest):
@@ -298,6 +303,8 @@ def certify_plan(
         name = names[n]
         if not feasible:
             return UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0), None
+        if carried is not None and n in carried:
+            return _carried(carried[n], float(J[n]), wp[n])
         problem = solo_problem(model, wp, n, run_settings.velocity_fraction, azimuth)
         initial = encode(wp[n][None, None], problem.starts, problem.space)[0]  # (1, K, 3)
         warm = decode(initial[None], problem.starts, problem.lower, problem.upper)[0, 0]
@@ -327,8 +334,9 @@ def certify_plan(
         deviation.setflags(write=False)
         return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, out.path_evaluations), note
 
-    if workers > 1 and feasible and len(names) > 1:
-        with ThreadPoolExecutor(min(workers, len(names)), thread_name_prefix="staghunt-certify") as pool:
+    searched = len(names) - len(carried or ())
+    if workers > 1 and feasible and searched > 1:
+        with ThreadPoolExecutor(min(workers, searched), thread_name_prefix="staghunt-certify") as pool:
             found = list(pool.map(search, range(len(names))))
     else:
         found = [search(n) for n in range(len(names))]
@@ -345,3 +353,15 @@ def certify_plan(
     )
 
 
+def _carried(earlier: UAVGap, current: float, path: np.ndarray) -> tuple[UAVGap, str]:
+    """UAV ``earlier.name``'s gap in a plan where it flies ``path`` ``(K, 3)`` at cost
+    ``current``, from an earlier search of the same problem (:func:`certify_plan`'s ``carried``)."""
+    assert earlier.best is not None
+    best = min(float(earlier.best), current)
+    gap = current - best
+    relative = gap / current if current != 0 else (0.0 if gap == 0 else math.inf)
+    deviation = np.array(path if gap == 0.0 else earlier.deviation)
+    deviation.setflags(write=False)
+    note = (f"{earlier.name}: the others' paths are those of the previous search of its deviations "
+            f"({earlier.evaluations} path evaluations), which stands: not searched again")
+    return UAVGap(earlier.name, current, best, gap, relative, deviation, earlier.roundtrip_error, 0), note
