@@ -21,7 +21,8 @@ acceleration: the splice is continuous in all three) it
 4. certifies the accepted plan (each UAV's Nash gap, :func:`staghunt.solvers.response.certify_plan`).
 
 From a moving state the same is solved from rest after a synchronised stop, side by side on
-two cores (or only if the moving one fails, on one), and flown if the moving one fails. If
+two cores (or only if the moving one fails, on one), and flown if the moving one fails; a
+moving solve that ends infeasible is tried again only if the plan from rest does not pass. If
 neither gives a plan that passes, the team stops: a synchronised stop to hover
 (:func:`~staghunt.flight.reference.stop_piece`), after which it re-plans with
 ``stop_budget_factor`` times the budget.
@@ -34,7 +35,7 @@ import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -241,6 +242,11 @@ class _Attempt:
     windows: list[tuple[str, float, float]]
 
 
+def _passed(rest: tuple[_Attempt | None, Reference, Piece]) -> bool:
+    """Whether a plan from rest (``from_rest``'s outcome in :meth:`Replanner.solve`) passed."""
+    return rest[0] is not None and rest[0].ref is not None
+
+
 class Replanner:
     """Re-solves the game in flight for one episode; holds what it needs between re-plans.
 
@@ -294,9 +300,10 @@ class Replanner:
 
         lead = None if at_rest else self._lead_in(ref, t_s)
 
-        def moving(engine: Engine) -> _Attempt:
+        def moving(engine: Engine, rest_passes: Callable[[], bool] | None = None) -> _Attempt:
             return self._attempts(ref, t_s, list(windows), warm, settings, cfg.attempts, MAX_STRETCH,
-                                  WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine, lead)
+                                  WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine, lead,
+                                  stop_retrying=rest_passes)
 
         def from_rest(engine: Engine, cancel: threading.Event | None = None
                       ) -> tuple[_Attempt | None, Reference, Piece]:
@@ -307,19 +314,27 @@ class Replanner:
             return (self._attempts(stopped, stop.t1, list(windows), rest, settings, 2, math.inf,
                                    WIDE_AZIMUTH, rest_rng, engine, cancel=cancel), stopped, stop)
 
+        # An infeasible moving solve is tried again only if the plan from rest does not pass
+        # (asked once the moving one has failed: the same flight on one core and on two).
         if at_rest:
             first, second = moving(self.engine), None
         elif self._workers > 1:
             cancel = threading.Event()
             with ThreadPoolExecutor(1) as pool:
                 later = pool.submit(from_rest, self._solo, cancel)
-                first = moving(self._solo)
+                first = moving(self._solo, lambda: _passed(later.result()))
                 if first.ref is not None:  # the plan from rest is not needed: stop it
                     cancel.set()
                 second = later.result()
         else:
-            first = moving(self.engine)
-            second = from_rest(self.engine) if first.ref is None else None
+            rest_box: list[tuple[_Attempt | None, Reference, Piece]] = []
+
+            def rest_passes() -> bool:
+                rest_box.append(from_rest(self.engine))
+                return _passed(rest_box[0])
+
+            first = moving(self.engine, rest_passes)
+            second = rest_box[0] if rest_box else (from_rest(self.engine) if first.ref is None else None)
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
@@ -481,14 +496,16 @@ class Replanner:
     def _attempts(self, base: Reference, t0: float, windows: list[tuple[str, float, float]],
                   warm: np.ndarray, settings: Any, tries: int, max_stretch: float, azimuth: float,
                   rng: np.random.Generator, engine: Engine, lead: np.ndarray | None = None,
-                  cancel: threading.Event | None = None) -> _Attempt:
+                  cancel: threading.Event | None = None,
+                  stop_retrying: Callable[[], bool] | None = None) -> _Attempt:
         """Solve from ``base``'s state at ``t0`` up to ``tries`` times (each new conflict with a
         known motion adds its window to ``windows``, which this call owns), with headings within
         ``azimuth`` of the goal direction, drawing from ``rng`` and searching with ``engine``.
         ``lead``: ``(N, 3)`` lead-in points (:meth:`_lead_in`): the game is solved from them and
         the paths flown from the switch state through them. ``cancel``: once set, the solve
         stops after the reply in progress and returns no plan (its evaluations counted up to
-        its last complete solve)."""
+        its last complete solve). ``stop_retrying()``: asked when a solve ends infeasible; if it
+        says so (another plan passes), the solve is not tried again."""
         scenario, cfg = self.scenario, self.config
         state = base.state(np.array([t0]))[:, :, 0]  # (4, N, 3)
         starts = to_xyh(scenario, state[0] if lead is None else lead)
@@ -516,6 +533,8 @@ class Replanner:
             warm = out.plan
             if evaluate(model, out.plan[None]).total_violation[0] > 0:
                 problems = ["no feasible plan from the switch state"]
+                if stop_retrying is not None and stop_retrying():
+                    return _Attempt(None, out, sub, problems, attempt, spent, azimuth, windows)
                 continue
             new_ref, problems, found = self._splice(base, t0, sub, out.plan, max_stretch, lead)
             done = new_ref is not None or found is None  # passed, or the timing itself failed
