@@ -196,9 +196,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
     try:
         wp, dyn, n, lead = _with_popup(job, get_engine("auto", job["threads"]))
         r = fly(job["result"], waypoints=wp, events=dyn, seed=job["episode"],
-                config=FlyConfig(wind=job.get("wind", 0.0),
-                                 certify_rounds=job.get("certify_rounds", FlyConfig.certify_rounds)),
-                threads=job["threads"])
+                config=FlyConfig(wind=job.get("wind", 0.0), **job.get("config", {})), threads=job["threads"])
     except ValueError as exc:
         return {**_meta(job), "error": str(exc)}
     recs = r.replans
@@ -275,7 +273,7 @@ def solve_only(job: dict[str, Any]) -> dict[str, Any]:
     scenario = replace(scenario, dynamics=dyn)
     _, ref, _ = plan_around(check_plan(scenario, "game", 1, settings, engine), dyn, wp, FlyConfig())
     popup = dyn.events[0]
-    config = FlyConfig(certify_rounds=job.get("certify_rounds", FlyConfig.certify_rounds))
+    config = FlyConfig(**job.get("config", {}))
     planner = Replanner(scenario, dyn, config, engine, np.random.default_rng(job["episode"]))
     planner.known.sensed[popup.name] = popup.shape
     t = math.ceil(popup.time * 10.0) / 10.0  # the first planner tick after it appears
@@ -294,9 +292,10 @@ def main() -> int:
     ap.add_argument("--solve-only", action="store_true",
                     help="only each episode's first re-plan, on the reference, one at a time with the "
                     "engine's adaptive threads (the latency on the whole machine); writes replan_solve.json")
-    ap.add_argument("--certify-rounds", type=int, default=None,
-                    help="FlyConfig.certify_rounds (default: FlyConfig's)")
+    ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                    help="a FlyConfig setting for every episode, e.g. --set certify_rounds=2 (repeatable)")
     args = ap.parse_args()
+    overrides = _overrides(args.set)
 
     import staghunt
     from staghunt.io.result_json import write_result
@@ -316,9 +315,7 @@ def main() -> int:
         path = tmp / f"{kind}.json"
         write_result(res, path)
         for ep in make_episodes(kind, count, sc, np.array(res.waypoints)):
-            base = {**ep, "result": str(path), "threads": threads}
-            if args.certify_rounds is not None:
-                base["certify_rounds"] = args.certify_rounds
+            base = {**ep, "result": str(path), "threads": threads, "config": overrides}
             if kind == "scenario2" and ep["episode"] < args.episodes:
                 jobs.append(base)
             if kind == "scenario2" and ep["episode"] < args.wind_episodes:
@@ -364,6 +361,23 @@ def main() -> int:
     return 0
 
 
+def _overrides(items: list[str]) -> dict[str, Any]:
+    """``NAME=VALUE`` strings -> FlyConfig keyword arguments (numbers as int or float)."""
+    from dataclasses import fields
+
+    from staghunt.flight import FlyConfig
+
+    known = {f.name: f.type for f in fields(FlyConfig)}
+    out: dict[str, Any] = {}
+    for item in items:
+        name, _, value = item.partition("=")
+        if name not in known:
+            raise SystemExit(f"--set: unknown FlyConfig setting {name!r}; one of {', '.join(known)}")
+        out[name] = int(value) if known[name] in (int, "int") else float(value)
+    FlyConfig(**out).check()
+    return out
+
+
 def _solve_only(jobs: list[dict[str, Any]], out: Path) -> int:
     rows = []
     for i, job in enumerate(jobs):
@@ -378,7 +392,9 @@ def _solve_only(jobs: list[dict[str, Any]], out: Path) -> int:
         solved = [r for r in sel if r["status"].endswith("replanned")]
         lines.append(f"| {k}: {len(sel)} | {len(solved)} | {np.percentile(lat, 50):.0f} / "
                      f"{np.percentile(lat, 95):.0f} / {lat.max():.0f} | {sum(r['certified'] for r in solved)}/{len(solved)} |")
-    md = "\n".join(lines) + f"\n\none re-plan at a time, adaptive threads, load average {os.getloadavg()[0]:.2f} at the end.\n"
+    settings = ", ".join(f"{k} = {v}" for k, v in jobs[0].get("config", {}).items()) or "default settings"
+    md = "\n".join(lines) + (f"\n\none re-plan at a time, adaptive threads, {settings}, load average "
+                             f"{os.getloadavg()[0]:.2f} at the end.\n")
     out.mkdir(parents=True, exist_ok=True)
     (out / "replan_solve.json").write_text(json.dumps(rows, indent=1) + "\n")
     (out / "replan_solve.md").write_text(md)
