@@ -39,7 +39,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from staghunt.costs import CostModel, evaluate, to_absolute
+from staghunt.costs import CostModel, to_absolute
 from staghunt.encoding import ANGLE_RANGE
 from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.flight.known import (
@@ -378,6 +378,7 @@ class Replanner:
         path evaluations spent."""
         cfg = self.config
         model = CostModel.from_scenario(sub)
+        judge = self._solo.evaluate  # the compiled twin of the reference (the same verdicts)
         base, t0, max_stretch, lead = splice
         options = CertifyOptions(cfg.certify_particles, cfg.certify_iterations, cfg.epsilon)
         search = check_search(settings, options, "re-plan settings")  # once for every round
@@ -398,12 +399,12 @@ class Replanner:
             adopted = None
             if len(order) > 1:
                 # every reply in turn, kept if it still gains more than epsilon after those kept
-                team, J = plan.copy(), evaluate(model, plan[None]).total[0]
+                team, J = plan.copy(), judge(model, plan[None]).total[0]
                 taken = 0
                 for n in order:
                     candidate = team.copy()
                     candidate[n] = cert.uavs[n].deviation
-                    c = evaluate(model, candidate[None])
+                    c = judge(model, candidate[None])
                     spent += 1
                     if c.total_violation[0] == 0 and c.total[0][n] < (1 - cfg.epsilon) * J[n]:
                         team, J, taken = candidate, c.total[0], taken + 1
@@ -416,7 +417,7 @@ class Replanner:
                     candidate = plan.copy()
                     candidate[n] = cert.uavs[n].deviation
                     spent += 1
-                    if evaluate(model, candidate[None]).total_violation[0] > 0:
+                    if judge(model, candidate[None]).total_violation[0] > 0:
                         continue
                     spliced, _, _ = self._splice(base, t0, sub, candidate, max_stretch, lead)
                     if spliced is not None:  # else the next-worst UAV's reply
@@ -531,7 +532,7 @@ class Replanner:
                 return _Attempt(None, out, sub, ["cancelled"], attempt, spent, azimuth, windows)
             spent += out.evaluations
             warm = out.plan
-            if evaluate(model, out.plan[None]).total_violation[0] > 0:
+            if engine.evaluate(model, out.plan[None]).total_violation[0] > 0:
                 problems = ["no feasible plan from the switch state"]
                 if stop_retrying is not None and stop_retrying():
                     return _Attempt(None, out, sub, problems, attempt, spent, azimuth, windows)
