@@ -170,6 +170,13 @@ def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduc
     two = certify_plan(scenario1, game.waypoints, workers=2, **kw)
     assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in two.uavs]
     assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, two.uavs))
+    # Three searches on two workers: the third alone on both cores (230 particles: two threads
+    # really run), the same certificate.
+    kw["particles"] = 230
+    one = certify_plan(scenario1, game.waypoints, workers=1, **kw)
+    tail = certify_plan(scenario1, game.waypoints, workers=2, tail_runner=get_engine("numba", threads=2).run_swarm, **kw)
+    assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in tail.uavs]
+    assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, tail.uavs))
 
 
 def test_stop_when_certified_returns_the_certificate_it_stopped_on(scenario1):
