@@ -164,8 +164,8 @@ def ground_z(x: float, y: float, h: float, grid: np.ndarray, par: np.ndarray) ->
         return h + g
     u = min(max(u, 0.0), cols - 1.0)
     v = min(max(v, 0.0), rows - 1.0)
-    j0 = min(max(int(math.floor(u)), 0), max(cols - 2, 0))
-    i0 = min(max(int(math.floor(v)), 0), max(rows - 2, 0))
+    j0 = min(max(int(u), 0), max(cols - 2, 0))  # u >= 0: truncation is the floor (and faster)
+    i0 = min(max(int(v), 0), max(rows - 2, 0))
     j1 = min(j0 + 1, cols - 1)
     i1 = min(i0 + 1, rows - 1)
     fu = u - j0
