@@ -162,9 +162,18 @@ def ground_z(x: float, y: float, h: float, grid: np.ndarray, par: np.ndarray) ->
         if mode == 2.0:
             return np.float64(np.float32(h) + np.float32(g))
         return h + g
-    u = min(max(u, 0.0), cols - 1.0)
-    v = min(max(v, 0.0), rows - 1.0)
-    j0 = min(max(int(u), 0), max(cols - 2, 0))  # u >= 0: truncation is the floor (and faster)
+    return bilinear_z(x, y, h, grid, par[P_OX], par[P_OY], par[P_CELL])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def bilinear_z(x: float, y: float, h: float, grid: np.ndarray, ox: float, oy: float, cell: float) -> float:
+    """:func:`ground_z` on a bilinear grid (``P_TERRAIN`` 3) with origin ``ox, oy`` and cell
+    size ``cell``. Branch-free, so a loop over lanes that calls it vectorises (gathers): call it
+    directly in such loops (about 4x faster than through ``ground_z``'s branches)."""
+    rows, cols = grid.shape
+    u = min(max((x - ox) / cell, 0.0), cols - 1.0)
+    v = min(max((y - oy) / cell, 0.0), rows - 1.0)
+    j0 = min(max(int(u), 0), max(cols - 2, 0))  # u >= 0: truncation is the floor
     i0 = min(max(int(v), 0), max(rows - 2, 0))
     j1 = min(j0 + 1, cols - 1)
     i1 = min(i0 + 1, rows - 1)
@@ -803,6 +812,8 @@ def _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo) -> None:  # no
     of a deviation's cost)."""
     N, K = ph.shape[0], ph.shape[1]
     flat = par[P_TERRAIN] == 0.0
+    bilinear = par[P_TERRAIN] == 3.0
+    ox, oy, cell = par[P_OX], par[P_OY], par[P_CELL]
     for n in range(N):
         _fill(px[n, 0], nb, uav[n, U_START])
         _fill(py[n, 0], nb, uav[n, U_START + 1])
@@ -817,6 +828,9 @@ def _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo) -> None:  # no
                     pz[n, k + 1, b] = ph[n, k, b] + 0.0
             elif same:
                 _fill(pz[n, k + 1], nb, ground_z(px[n, k + 1, 0], py[n, k + 1, 0], ph[n, k, 0], grid, par))
+            elif bilinear:
+                for b in range(nb):
+                    pz[n, k + 1, b] = bilinear_z(px[n, k + 1, b], py[n, k + 1, b], ph[n, k, b], grid, ox, oy, cell)
             else:
                 for b in range(nb):
                     pz[n, k + 1, b] = ground_z(px[n, k + 1, b], py[n, k + 1, b], ph[n, k, b], grid, par)
