@@ -374,7 +374,7 @@ def fly(
     if waypoints is None:
         waypoints = source_waypoints
     else:
-        from staghunt.checks import check_waypoints
+        from staghunt.inputs import check_waypoints
 
         waypoints = check_waypoints(waypoints, scenario.n_uavs)
     if events is None:
