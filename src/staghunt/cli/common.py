@@ -158,6 +158,7 @@ FIELD_FLAGS = {
 
 COMMAND_FLAGS = {
     "certify": {"certify": "--particles, --iterations, --epsilon", "settings": "the file's settings"},
+    "compare": {"method": "--methods"},
     "fly": {"settings": "--particles, --iterations, --waypoints or the scenario's [solver]"},
 }
 
