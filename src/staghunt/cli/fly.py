@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -31,7 +32,9 @@ from staghunt.cli.common import (
     path_argument,
     say,
 )
+from staghunt.flight import FlyConfig, check_flight, fly
 from staghunt.inputs import clip
+from staghunt.io.flight_files import latency_summary, write_flight
 
 
 def add_commands(sub: Any) -> None:
@@ -67,32 +70,23 @@ def add_commands(sub: Any) -> None:
 
 
 def cmd_fly(args: argparse.Namespace) -> int:
-    from dataclasses import replace
-
-    from staghunt.flight import FlyConfig, fly
-    from staghunt.io.flight_files import write_flight
-
     out_dir = Path(args.out)
     check_out_dir(out_dir, "flight.json")
-    config = FlyConfig(wind=args.wind, wind_heading_deg=args.wind_heading)
     changes = {"latency_budget": args.latency, "replan_particles": args.replan_particles,
                "replan_iterations": args.replan_iterations}
-    config = replace(config, **{k: v for k, v in changes.items() if v is not None})
-    settings = None
-    if any(v is not None for v in (args.particles, args.iterations, args.waypoints, args.starts)):
-        from staghunt.flight.loop import _source
-
-        scenario, _, plan_settings = _source(args.source)
-        settings = (plan_settings or scenario.solver).with_(
-            particles=args.particles, iterations=args.iterations, waypoints=args.waypoints, starts=args.starts)
+    config = replace(FlyConfig(wind=args.wind, wind_heading_deg=args.wind_heading),
+                     **{k: v for k, v in changes.items() if v is not None})
+    budget = {"particles": args.particles, "iterations": args.iterations, "waypoints": args.waypoints,
+              "starts": args.starts}
+    request = check_flight(args.source, events=args.events, seed=args.seed, config=config, budget=budget,
+                           warn=say, **engine_kwargs(args))
 
     def progress(t: float, t_end: float) -> None:
         if not args.quiet and sys.stderr.isatty():
             sys.stderr.write(f"\r{PROG}: flying, t = {t:5.1f} s ")
             sys.stderr.flush()
 
-    result = fly(args.source, events=args.events, seed=args.seed, config=config, settings=settings,
-                 progress=progress, **engine_kwargs(args))
+    result = fly(request, progress=progress)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -113,8 +107,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 
 def _report(result: Any) -> None:
-    from staghunt.io.flight_files import latency_summary
-
     sc = result.scenario
     print(f"{sc.name} / seed {result.seed}: {len(result.times) / result.config.sim_rate:.1f} s of flight "
           f"simulated at {result.config.sim_rate:g} Hz in {result.wall_time_s:.1f} s")
