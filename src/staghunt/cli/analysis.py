@@ -30,7 +30,7 @@ from staghunt.analysis.compare import (
 from staghunt.cli.common import (  # the shared options, exit codes and error lines
     EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options,
     add_engine_options, add_quiet_option, add_run_options, add_scenario_argument, budget_settings,
-    certify_options, check_out_dir, check_path_lengths, command, engine_kwargs, error,
+    add_cluster_options, certify_options, check_out_dir, check_path_lengths, command, engine_kwargs, error,
     int_at_least, one_line, os_reason, path_argument, safe_name, say,
 )
 from staghunt.io.atomic import check_replaceable
@@ -44,18 +44,7 @@ from staghunt.study.executor import make_executor, runs_here
 
 def add_commands(subparsers: Any) -> None:
     """Register ``compare`` and ``certify`` on ``subparsers`` (from ``add_subparsers``)."""
-    p = command(
-        subparsers, "compare", cmd_compare,
-        "run every method on every seed; table, dominance, Nash gaps, figure",
-        description="Plan SCENARIO with every method on every seed with the same budget, re-score "
-        "every plan with the same J_n, test whether the game allocation Pareto-dominates each "
-        "other method's (per seed), certify every plan (Nash gaps), and put the paper's Fig. 8 "
-        "numbers next to ours. Writes DIR/runs/<method>-s<seed>.json (+ .certify.json) as each "
-        "run finishes, DIR/compare.json, DIR/compare.csv and DIR/compare.png. Runs already in DIR "
-        "are not planned again, so an interrupted comparison resumes where it stopped.",
-        epilog="Budget: every method spends particles x (iterations + 1) x N single-UAV path "
-        "evaluations. Exit codes: 0 done, 2 bad input, 130 interrupted (finished runs kept).",
-    )
+    p = command(subparsers, "compare", cmd_compare, {EXIT_OK: "done", EXIT_INTERRUPTED: "interrupted (finished runs kept)"})
     add_scenario_argument(p)
     p.add_argument("--methods", metavar="LIST", default=",".join(DEFAULT_METHODS),
                    help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)})")
@@ -63,22 +52,10 @@ def add_commands(subparsers: Any) -> None:
     add_run_options(p, "runs/<scenario>-compare")
     add_certificate_options(p, "certify-", skip="the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
-    p.add_argument("--workers", type=int_at_least(1), metavar="N",
-                   help="run the runs on a local Dask cluster of N worker processes, one thread each "
-                   "(default: one run after the other in this process; see 'staghunt sweep')")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="run the runs on the Dask scheduler at ADDRESS")
+    add_cluster_options(p, "runs", "one run after the other in this process; see 'staghunt sweep'")
 
-    p = command(
-        subparsers, "certify", cmd_certify, "equilibrium certificate of a plan: each UAV's Nash gap",
-        description="For every UAV of the plan in RESULT.json, fix the others' paths and "
-        "re-optimise its own path on its own J_n (single-player SPSO, warm-started from its "
-        "current path, seeded). Its Nash gap is the best unilateral improvement found, absolute "
-        "and relative to its J_n. The plan is reported as an epsilon-equilibrium when every "
-        "relative gap is <= epsilon; otherwise the UAV that would deviate is named. The search "
-        "is heuristic: a gap is a lower bound on the true one.",
-        epilog="Exit codes: 0 epsilon-equilibrium, 3 not one (a UAV would deviate, or the plan is "
-        "infeasible), 2 bad input, 130 interrupted.",
-    )
+    p = command(subparsers, "certify", cmd_certify, {
+        EXIT_OK: "epsilon-equilibrium", EXIT_NEGATIVE: "not one (a UAV would deviate, or the plan is infeasible)"})
     p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
     add_certificate_options(p, "")
     p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
@@ -153,7 +130,16 @@ def _pct(v: float) -> str:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    """``staghunt compare``: see :func:`staghunt.analysis.compare.run_compare`."""
+    """run every method on every seed; table, dominance, Nash gaps, figure
+
+    Plan SCENARIO with every method on every seed with the same budget, re-score every plan with the
+    same J_n, test whether the game allocation Pareto-dominates each other method's (per seed),
+    certify every plan (Nash gaps), and put the paper's Fig. 8 numbers next to ours. Writes
+    DIR/runs/<method>-s<seed>.json (+ .certify.json) as each run finishes, DIR/compare.json,
+    DIR/compare.csv and DIR/compare.png. Runs already in DIR are not planned again, so an
+    interrupted comparison resumes where it stopped. Budget: every method spends particles x
+    (iterations + 1) x N single-UAV path evaluations.
+    """
     workers = args.workers if args.workers is not None else 1
     try:
         methods = parse_methods(args.methods)
@@ -180,7 +166,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
             file=sys.stderr,
         )
     try:
-        executor = make_executor(args.scheduler, workers)
+        executor = make_executor(args.scheduler, workers, args.connect_timeout)
     except ValueError as exc:  # ClusterError: the scheduler cannot be reached
         return error(one_line(exc))
     if not executor.local:  # compile once here, into the on-disk cache the workers load
@@ -230,7 +216,14 @@ def _count_done(out: Path, methods: tuple[str, ...], seeds: tuple[int, ...], cer
 
 
 def cmd_certify(args: argparse.Namespace) -> int:
-    """``staghunt certify``: see :func:`staghunt.analysis.certify.certify_result_file`."""
+    """equilibrium certificate of a plan: each UAV's Nash gap
+
+    For every UAV of the plan in RESULT.json, fix the others' paths and re-optimise its own path on
+    its own J_n (single-player SPSO, warm-started from its current path, seeded). Its Nash gap is
+    the best unilateral improvement found, absolute and relative to its J_n. The plan is reported as
+    an epsilon-equilibrium when every relative gap is <= epsilon; otherwise the UAV that would
+    deviate is named. The search is heuristic: a gap is a lower bound on the true one.
+    """
     line = StatusLine(sys.stderr)
 
     def progress(uav: int, n_uavs: int, iteration: int, total: int) -> None:
