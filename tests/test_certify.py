@@ -231,17 +231,18 @@ def test_a_carried_search_stands_for_the_uav_that_flies_its_reply(pair):
     """After a certificate round adopts B's better reply (only B moved), the next certificate
     keeps B's search: gap 0 from that search, no evaluation spent, a note; A is searched
     again, exactly as a fresh certificate searches it."""
-    from staghunt.solvers.response import certify_plan
+    from staghunt.solvers.response import CertifyOptions, certify_plan, check_certify
 
+    budget = CertifyOptions(particles=40, iterations=30)
     wp = np.stack([_straight(40.0), _straight(60.0)])
     wp[1, 1, 1] += 10.0
-    first = certify_plan(pair, wp, particles=40, iterations=30, seed=2)
+    first = certify_plan(check_certify(pair, wp, budget, seed=2))
     b = first.uavs[1]
     assert b.relative > 0.5
     moved = wp.copy()
     moved[1] = b.deviation
-    again = certify_plan(pair, moved, particles=40, iterations=30, seed=3, carried={1: b})
-    fresh = certify_plan(pair, moved, particles=40, iterations=30, seed=3)
+    again = certify_plan(check_certify(pair, moved, budget, seed=3), carried={1: b})
+    fresh = certify_plan(check_certify(pair, moved, budget, seed=3))
     J = evaluate(CostModel.from_scenario(pair), moved[None]).total[0]
     kept = again.uavs[1]
     assert kept.current == J[1] and kept.evaluations == 0

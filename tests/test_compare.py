@@ -1,4 +1,5 @@
-"""``run_compare`` and ``staghunt compare``: files, resume, interruption, dominance, Fig. 8 block."""
+"""``check_compare``, ``run_compare`` and ``staghunt compare``: checks, files, resume, interruption,
+dominance, Fig. 8 block."""
 
 from __future__ import annotations
 
@@ -10,13 +11,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import staghunt.cli.analysis
 import staghunt.study.tasks
 import staghunt.api
-from staghunt.analysis import compare as cmp
 from staghunt.analysis.compare import (
     CSV_COLUMNS,
     CertifyOptions,
     CompareListener,
+    check_compare,
     dominance_table,
     format_report,
     parse_methods,
@@ -53,8 +55,7 @@ def settings(scenario):
 @pytest.fixture(scope="module")
 def done(tmp_path_factory, scenario, settings):
     out = tmp_path_factory.mktemp("cmp")
-    report = run_compare(scenario, out, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
-                         plan_options={"engine": "numpy"})
+    report = run_compare(check_compare(scenario, METHODS4, SEEDS, settings, TINY_CERT, engine="numpy"), out)
     return out, report
 
 
@@ -79,8 +80,38 @@ def test_parse_seeds_rejects(text):
 
 def test_parse_methods():
     assert parse_methods("game, rigid,game") == ("game", "rigid")
-    with pytest.raises(ValueError, match="unknown method 'nope'"):
-        parse_methods("game,nope")
+    assert parse_methods("game,nope") == ("game", "nope")  # parsed; checked with its run
+    with pytest.raises(ValueError, match="^methods: ") as info:
+        parse_methods(" , ")
+    assert info.value.field == "methods"
+
+
+@pytest.mark.parametrize("methods, seeds, field, expect", [
+    (("game", "nope"), (1,), "method", "unknown method 'nope'; choose one of "),
+    ((), (1,), "methods", "no methods to compare"),
+    (("game", "game"), (1,), "methods", "methods must not repeat"),
+    (("game",), (), "seeds", "no seeds to run"),
+    (("game",), (1, 1), "seeds", "seeds must not repeat"),
+    (("game",), (1, -2), "seed", "seed must be an integer >= 0, got -2"),
+])
+def test_check_compare_refuses_before_any_run(scenario, settings, methods, seeds, field, expect):
+    with pytest.raises(ValueError, match=expect) as info:
+        check_compare(scenario, methods, seeds, settings, TINY_CERT, engine="numpy")
+    assert info.value.field == field
+
+
+def test_check_compare_checks_every_run_once(scenario, settings, monkeypatch):
+    """One :func:`staghunt.api.check_plan` per method; every (method, seed) run is a checked
+    request that ``run_compare`` uses as it is."""
+    from staghunt.analysis.compare import runner
+
+    calls = []
+    real = runner.check_plan
+    monkeypatch.setattr(runner, "check_plan", lambda *a, **k: calls.append(a[1]) or real(*a, **k))
+    request = check_compare(scenario, ("game", "rigid"), (3, 1), settings, None, engine="numpy")
+    assert calls == ["game", "rigid"]
+    assert request.seeds == (3, 1) and sorted(request.runs) == [("game", 1), ("game", 3), ("rigid", 1), ("rigid", 3)]
+    assert all(r.method == m and r.seed == s and r.settings is settings for (m, s), r in request.runs.items())
 
 
 # ------------------------------------------------------------------------------------------------
@@ -194,8 +225,7 @@ def test_resume_plans_nothing_again(done, scenario, settings, monkeypatch):
 
     monkeypatch.setattr(staghunt.api, "plan", no_plan)
     monkeypatch.setattr(staghunt.study.tasks, "run_plan_task", no_plan)
-    report = run_compare(scenario, out, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
-                         plan_options={"engine": "numpy"})
+    report = run_compare(check_compare(scenario, METHODS4, SEEDS, settings, TINY_CERT, engine="numpy"), out)
     assert report.complete
     assert (out / "compare.json").read_bytes() == before
 
@@ -215,8 +245,7 @@ def test_resume_certifies_a_run_planned_but_not_certified(done, scenario, settin
         raise AssertionError("a finished run was planned again")
 
     monkeypatch.setattr(staghunt.api, "plan", no_plan)
-    report = run_compare(scenario, copy, methods=METHODS4, seeds=SEEDS, settings=settings, certify=TINY_CERT,
-                         plan_options={"engine": "numpy"})
+    report = run_compare(check_compare(scenario, METHODS4, SEEDS, settings, TINY_CERT, engine="numpy"), copy)
     assert report.complete
     assert strict(lost) == strict(out / "runs" / "game-s1.certify.json")
 
@@ -228,8 +257,8 @@ def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings,
                 raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        run_compare(scenario, tmp_path, methods=("game", "rigid"), seeds=(1, 2), settings=settings,
-                    certify=None, listener=Stop(), plan_options={"engine": "numpy"})
+        run_compare(check_compare(scenario, ("game", "rigid"), (1, 2), settings, None, engine="numpy"), tmp_path,
+                    listener=Stop())
     data = strict(tmp_path / "compare.json")
     assert [(r["method"], r["seed"]) for r in data["runs"]] == [("game", 1), ("rigid", 1), ("game", 2)]
     assert not data["complete"] and data["missing"] == ["rigid-s2"]
@@ -237,8 +266,7 @@ def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings,
     real = staghunt.api.plan
     monkeypatch.setattr(staghunt.api, "plan", lambda request, **k: calls.append((request.method, request.seed))
                         or real(request, **k))
-    report = run_compare(scenario, tmp_path, methods=("game", "rigid"), seeds=(1, 2), settings=settings,
-                         certify=None, plan_options={"engine": "numpy"})
+    report = run_compare(check_compare(scenario, ("game", "rigid"), (1, 2), settings, None, engine="numpy"), tmp_path)
     assert calls == [("rigid", 2)] and report.complete
 
 
@@ -249,8 +277,8 @@ def test_compare_on_a_dask_cluster_gives_the_same_runs(done, scenario, settings,
 
     out, _ = done
     with DaskExecutor(workers=2) as ex:
-        report = run_compare(scenario, tmp_path, methods=METHODS4, seeds=SEEDS, settings=settings,
-                             certify=TINY_CERT, plan_options={"engine": "numpy"}, executor=ex)
+        report = run_compare(check_compare(scenario, METHODS4, SEEDS, settings, TINY_CERT, engine="numpy", threads=1),
+                             tmp_path, executor=ex)
     assert report.complete
     here, there = strict(out / "compare.json"), strict(tmp_path / "compare.json")
     assert [(r["method"], r["seed"]) for r in there["runs"]] == [(r["method"], r["seed"]) for r in here["runs"]]
@@ -266,11 +294,9 @@ def test_compare_on_a_dask_cluster_gives_the_same_runs(done, scenario, settings,
 def test_other_settings_in_the_directory_are_refused(done, scenario, settings):
     out, _ = done
     with pytest.raises(ValueError, match="different solver settings"):
-        run_compare(scenario, out, methods=("game",), seeds=(1,), settings=settings.with_(particles=9),
-                    certify=TINY_CERT)
+        run_compare(check_compare(scenario, ("game",), (1,), settings.with_(particles=9), TINY_CERT), out)
     with pytest.raises(ValueError, match="different certificate budget"):
-        run_compare(scenario, out, methods=("game",), seeds=(1,), settings=settings,
-                    certify=CertifyOptions(particles=7, iterations=2))
+        run_compare(check_compare(scenario, ("game",), (1,), settings, CertifyOptions(particles=7, iterations=2)), out)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -302,7 +328,7 @@ def test_cli_compare_interrupted(tmp_path, capsys, monkeypatch):
     def interrupted(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cmp, "run_compare", interrupted)
+    monkeypatch.setattr(staghunt.cli.analysis, "run_compare", interrupted)
     code = run_cli(["compare", "scenario2", "--seeds", "1", "--out", str(tmp_path / "i"), "--quiet"])
     assert code == 130
     assert "interrupted: 0 of 5 runs finished and kept" in capsys.readouterr().err

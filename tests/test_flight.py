@@ -491,7 +491,6 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_checked():
     plan_abs = np.stack([np.column_stack([x, 15.0 + zig, np.full(K, 12.0)]),
                          np.column_stack([x, 23.0 + zig, np.full(K, 12.0)])])
     wp = to_xyh(sc, plan_abs.reshape(-1, 3)).reshape(2, K, 3)
-    settings = sc.solver.with_(particles=100, iterations=100)
     gaps = {}
     for rounds in (0, 4):
         rp = Replanner(sc, dyn, FlyConfig(certify_rounds=rounds, certify_particles=100, certify_iterations=60),
@@ -502,7 +501,7 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_checked():
                                      0.0, sc.vehicle),))
         first, _, _ = rp._splice(base, 0.0, sub, wp, math.inf)
         assert first is not None
-        ref, cert, spent = rp._certified(first, wp, sub, settings, (base, 0.0, math.inf, None), ANGLE_RANGE)
+        ref, cert, spent = rp._certified(first, wp, sub, (base, 0.0, math.inf, None), ANGLE_RANGE)
         assert spent >= sum(u.evaluations for u in cert.uavs)
         gaps[rounds] = cert.max_relative_gap
         assert not check_piece(sub, rp.known, dyn, ref, 0.0, ref.arrival)[0]  # flown plan checked

@@ -13,7 +13,7 @@ from staghunt.scenario import load_scenario
 from staghunt.solvers.dominance import dominates
 from staghunt.solvers.game import formation_target, polish
 from staghunt.solvers.problem import solo_problem
-from staghunt.solvers.response import CertifyOptions, certify_plan
+from staghunt.solvers.response import CertifyOptions, certify_plan, check_certify
 
 
 @pytest.fixture(scope="module")
@@ -130,12 +130,12 @@ def test_default_method_returns_an_equilibrium_that_rigid_does_not_dominate(redu
 
 def test_certificate_is_near_zero_on_the_equilibrium_and_large_when_perturbed(scenario1, reduced):
     settings, game, _ = reduced
-    again = certify_plan(scenario1, game.waypoints, particles=200, iterations=60, seed=5,
-                         settings=settings)
+    budget = CertifyOptions(particles=200, iterations=60)
+    again = certify_plan(check_certify(scenario1, game.waypoints, budget, seed=5, settings=settings))
     assert again.max_relative_gap < 0.01
     wp = np.array(game.waypoints)
     wp[2, 3:7, 2] += 6.0  # UAV 3 climbs 6 m out of the formation mid-way
-    bad = certify_plan(scenario1, wp, particles=200, iterations=60, seed=5, settings=settings)
+    bad = certify_plan(check_certify(scenario1, wp, budget, seed=5, settings=settings))
     assert bad.feasible and not bad.is_equilibrium
     assert bad.uavs[2].relative > 0.3 and bad.worst == 2
 
@@ -154,8 +154,8 @@ def test_certificate_refuses_settings_that_disable_the_search(scenario1, reduced
     _, game, _ = reduced
     for bad in (dict(velocity_fraction=0.0), dict(c1=0.0, c2=0.0), dict(c0="1")):
         with pytest.raises(ValueError, match="certificate settings"):
-            certify_plan(scenario1, game.waypoints, particles=10, iterations=5,
-                         settings=scenario1.solver.with_(**bad))
+            check_certify(scenario1, game.waypoints, CertifyOptions(particles=10, iterations=5),
+                          settings=scenario1.solver.with_(**bad))
 
 
 def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduced):
@@ -165,16 +165,16 @@ def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduc
 
     _, game, _ = reduced
     runner = get_engine("numba", threads=1).run_swarm
-    kw = {"particles": 60, "iterations": 20, "seed": 4, "runner": runner}
-    one = certify_plan(scenario1, game.waypoints, workers=1, **kw)
-    two = certify_plan(scenario1, game.waypoints, workers=2, **kw)
+    request = check_certify(scenario1, game.waypoints, CertifyOptions(particles=60, iterations=20), seed=4)
+    one = certify_plan(request, runner=runner, workers=1)
+    two = certify_plan(request, runner=runner, workers=2)
     assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in two.uavs]
     assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, two.uavs))
     # Three searches on two workers: the third alone on both cores (230 particles: two threads
     # really run), the same certificate.
-    kw["particles"] = 230
-    one = certify_plan(scenario1, game.waypoints, workers=1, **kw)
-    tail = certify_plan(scenario1, game.waypoints, workers=2, tail_runner=get_engine("numba", threads=2).run_swarm, **kw)
+    request = check_certify(scenario1, game.waypoints, CertifyOptions(particles=230, iterations=20), seed=4)
+    one = certify_plan(request, runner=runner, workers=1)
+    tail = certify_plan(request, runner=runner, workers=2, tail_runner=get_engine("numba", threads=2).run_swarm)
     assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in tail.uavs]
     assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, tail.uavs))
 
@@ -189,7 +189,7 @@ def test_stop_when_certified_returns_the_certificate_it_stopped_on(scenario1):
     assert early.evaluations <= full.evaluations
     from staghunt.engine import get_engine
 
-    again = certify_plan(scenario1, early.waypoints, particles=100, iterations=40, seed=2,
+    again = certify_plan(check_certify(scenario1, early.waypoints, cert, seed=2),
                          runner=get_engine("numba", threads=1).run_swarm)
     assert [u.gap for u in early.certificate.uavs] == [u.gap for u in again.uavs]
     if any("certified" in r for r in early.details["rounds"]):

@@ -1069,3 +1069,226 @@ def test_export_refuses_a_geotiff_changed_after_planning(tmp_path, capsys):
     refused(capsys, "export", str(plan_dir / "result.json"), "--out", str(out), "--no-plots",
             expect=r"embedded scenario: .*ground\.sha256: the GeoTIFF .*g\.tif' does not match this checksum \(file changed\?\)")
     assert not out.exists()
+
+
+def test_100000_buildings_outside_the_site_load_quickly(tmp_path, capsys):
+    """An OpenStreetMap-like extract: 100,000 small buildings, none near the site, one on it.
+    What cannot touch the site box is pruned before it becomes an obstacle, so the scenario
+    loads (and plans) as if only the one building were there (34 s and minutes before)."""
+    import time
+
+    from staghunt.scenario import load_scenario
+    from staghunt.world.georef import site_to_lonlat
+
+    import numpy as np
+
+    k = np.arange(100_000)
+    x, y = 2000.0 + 20.0 * (k % 400), -3000.0 + 20.0 * (k // 400)  # 8 x 5 km, 2 km from the site
+    lon, lat = site_to_lonlat(_origin(), x, y)
+    feats = [_poly(_square(float(a), float(b), 0.00005), height=10.0) for a, b in zip(lon, lat)]
+    feats.append(_poly(_square(*ON_SITE), name="on site", height=10.0))
+    scenario = _geo_scenario(tmp_path, geojson=_fc(*feats))
+    t0 = time.perf_counter()
+    s = load_scenario(str(scenario))
+    assert [p.name for p in s.world.prisms] == ["on site"]
+    code, out, err = run(capsys, "plan", str(scenario), *TINY, "--dry-run")
+    assert code == 0, err
+    assert time.perf_counter() - t0 < 60.0  # two loads; generous for a shared machine
+
+
+def _origin():
+    from staghunt.world import GeoOrigin
+
+    return GeoOrigin(47.397742, 8.545594, 488.0)
+
+
+def test_sparse_geotiff_of_1cm_pixels_is_read_decimated(tmp_path):
+    """A sparse 100,000 x 100,000 GeoTIFF of 1 cm pixels under the 100 m site: read decimated
+    (no full-resolution window in float64: that peaked at 1.75 GB), planned with no word of
+    memory or budget."""
+    pytest.importorskip("rasterio")
+    import rasterio
+    from affine import Affine
+
+    from staghunt.world.georef import site_to_crs
+
+    tif = tmp_path / "sparse.tif"
+    X0, Y0 = (float(v) for v in site_to_crs(_origin(), "EPSG:32632", 0.0, 0.0))
+    with rasterio.open(tif, "w", driver="GTiff", width=100_000, height=100_000, count=1, dtype="float32",
+                       crs="EPSG:32632", transform=Affine(0.01, 0.0, X0 - 450.0, 0.0, -0.01, Y0 + 550.0),
+                       tiled=True, blockxsize=256, blockysize=256, sparse_ok=True, bigtiff="YES"):
+        pass  # nothing written: every block reads as 0 m above mean sea level
+    assert tif.stat().st_size < 10 * 2**20
+    scenario = _geo_scenario(tmp_path, _ground(tif))
+    out = tmp_path / "plan"
+    code = (f"import resource, sys; import rasterio; from staghunt.cli import main; "
+            "before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024; "
+            f"rc = main({['plan', str(scenario), *TINY, '--no-certify', '--out', str(out)]!r}); "
+            "print(rc, before, resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024); sys.exit(0)")
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "PYTHONPATH": SRC})
+    assert proc.returncode == 0, proc.stderr
+    rc, before_mb, peak_mb = (int(v) for v in proc.stdout.split()[-3:])
+    assert rc in (0, 3), proc.stderr
+    assert "memory" not in proc.stderr and "budget" not in proc.stderr, proc.stderr
+    # A full-resolution read of the 10,000 x 10,000 pixel window: about +1.5 GB (1.75 GB in all);
+    # decimated: +15-50 MB here, once +650 MB (GDAL's own buffers)
+    assert peak_mb - before_mb < 1000, (before_mb, peak_mb)
+    assert (out / "result.json").is_file()
+
+
+@pytest.mark.parametrize("failure", ["disk_full", "ctrl_c"])
+def test_export_failing_into_a_new_directory_leaves_nothing(tmp_path, capsys, monkeypatch, result_file, failure):
+    """A full disk (or Ctrl-C) after the first file of a new mission set: no half set, not even
+    the directory."""
+    import errno
+
+    from staghunt.io import atomic
+
+    real = atomic._write_new
+    calls = {"n": 0}
+
+    def flaky(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] == 2:
+            raise OSError(errno.ENOSPC, "No space left on device") if failure == "disk_full" else KeyboardInterrupt()
+        return real(*args, **kwargs)
+
+    monkeypatch.setattr(atomic, "_write_new", flaky)
+    out = tmp_path / "new" / "mission"
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots")
+    assert code == (2 if failure == "disk_full" else 130), err
+    assert_clean(err, code)
+    assert not (tmp_path / "new").exists()
+
+
+def test_export_out_empty_is_refused(tmp_path, capsys, result_file, monkeypatch):
+    """``--out ''`` would mean the current directory: refused, like every command's ``--out``."""
+    monkeypatch.chdir(tmp_path)
+    refused(capsys, "export", str(result_file), "--out", "", "--no-plots", expect=r"--out: must not be empty")
+    assert not list(tmp_path.iterdir())
+
+
+# ------------------------------------------------------------------------------------------------
+# fly: events files and sources refused before any simulation (issue 19)
+# ------------------------------------------------------------------------------------------------
+
+FLY_SMALL = str(Path(__file__).parent / "data" / "flight_small.toml")
+FLY_TINY = ["--particles", "8", "--iterations", "2", "--engine", "numpy", "--no-plots", "--quiet"]
+APPEAR = "[[events]]\ntime = 1.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\n"
+
+FLY_CASES = {
+    "unknown_key": (APPEAR + "colour = 'red'\n", r"events\[0\]\.colour: unknown key"),
+    "negative_time": (APPEAR.replace("time = 1.0", "time = -1.0"), r"events\[0\]\.time"),
+    "nan_time": (APPEAR.replace("time = 1.0", "time = nan"), r"events\[0\]\.time"),
+    "on_a_uav": (APPEAR.replace("time = 1.0", "time = 0.0").replace("x = 20.0\ny = 20.0", "x = 5.0\ny = 15.0"),
+                 r"appears at t = 0 s on top of UAV1"),
+    "moving_leaves_site": ("[[moving]]\nname = 't'\nradius = 2.0\npath = [[10, 10], [120, 10]]\nspeed = 2.0\n",
+                           r"outside the site"),
+    # of the same kinds
+    "time_1e300": (APPEAR.replace("time = 1.0", "time = 1e300"), r"events\[0\]\.time"),
+    "x_1e12": (APPEAR.replace("x = 20.0", "x = 1e12"), r"events\[0\]\.x"),
+    "named_like_the_site_mast": (APPEAR + "name = 'mast'\n",
+                                 r"the name 'mast' is given to a changing obstacle and to an obstacle of the site"),
+    "disappears_before_it_appears": ("[[events]]\ntime = 1.0\nkind = 'disappear'\nname = 'p'\n"
+                                     + APPEAR.replace("time = 1.0", "time = 2.0") + "name = 'p'\n",
+                                     r"'p' disappears at t = 1 s, before it appears at t = 2 s"),
+    "utf16": (("\ufeff" + APPEAR).encode("utf-16"), r"not UTF-8"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(FLY_CASES))
+def test_fly_events_refused_before_any_simulation(tmp_path, capsys, case):
+    pytest.importorskip("rotorpy")
+    text, expect = FLY_CASES[case]
+    ev = write(tmp_path, "ev.toml", text)
+    out = tmp_path / "flight"
+    refused(capsys, "fly", FLY_SMALL, "--events", str(ev), "--out", str(out), *FLY_TINY, expect=expect)
+    assert not out.exists()
+
+
+def test_fly_events_file_that_is_a_directory(tmp_path, capsys):
+    pytest.importorskip("rotorpy")
+    out = tmp_path / "flight"
+    refused(capsys, "fly", FLY_SMALL, "--events", str(tmp_path), "--out", str(out), *FLY_TINY, expect=r"directory")
+    assert not out.exists()
+
+
+def test_fly_settings_that_cannot_certify_a_replan_are_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """``[solver] c1 = c2 = 0``: the offline plan needs no certificate, but every re-plan's does,
+    and its search could not move: refused before the offline plan, not in the first re-plan."""
+    pytest.importorskip("rotorpy")
+    import staghunt.flight.loop as loop
+
+    text = Path(FLY_SMALL).read_text().replace("[solver]\n", "[solver]\nc1 = 0.0\nc2 = 0.0\n")
+    scenario = write(tmp_path, "s.toml", text)
+    monkeypatch.setattr(loop, "plan", lambda *a, **k: pytest.fail("planned before the check"))
+    out = tmp_path / "flight"
+    refused(capsys, "fly", str(scenario), "--out", str(out), *FLY_TINY,
+            expect=r"re-plan settings: c1 and c2 are both 0")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("case", ["outside_1km", "height_300"])
+def test_fly_result_with_paths_outside_the_site(tmp_path, capsys, result_data, case):
+    """A result.json whose waypoints were moved 1 km out of the site (or 300 m up in a 5-35 m
+    band): refused before anything is planned or flown (it flew, exit 0, for 6 minutes)."""
+    pytest.importorskip("rotorpy")
+    p = tmp_path / "result.json"
+    p.write_text(json.dumps(_tampered(result_data, EXPORT_CASES[case][0])))
+    out = tmp_path / "flight"
+    refused(capsys, "fly", str(p), "--out", str(out), *FLY_TINY, expect=r"result\.json: uavs: UAV1 waypoint 1 leaves "
+            r"the site box: (x = 1\d{3}.* is above site\.xmax|h = 300 is above site\.hmax)")
+    assert not out.exists()
+
+
+# ------------------------------------------------------------------------------------------------
+# sweep: bad specs refused before any cluster or file (issue 19)
+# ------------------------------------------------------------------------------------------------
+
+SWEEP_SPEC = """scenarios = ["scenario1"]
+methods = ["game", "rigid"]
+seeds = "1-2"
+particles = 6
+iterations = 1
+waypoints = 3
+engine = "numpy"
+
+[certificate]
+particles = 4
+iterations = 1
+"""
+
+SWEEP_CASES = {
+    "unknown_method": (SWEEP_SPEC.replace('"rigid"', '"nope"'), r"methods\[1\]: unknown method 'nope'; choose one of"),
+    "method_twice": (SWEEP_SPEC.replace('"rigid"', '"game"'), r"methods: a method is listed twice"),
+    "seeds_backwards": (SWEEP_SPEC.replace('"1-2"', '"5-1"'), r"seeds: the range '5-1' runs backwards"),
+    "seed_negative": (SWEEP_SPEC.replace('"1-2"', "[1, -2]"), r"seeds"),
+    "scenario_twice": (SWEEP_SPEC.replace('["scenario1"]', '["scenario1", "scenario1"]'), r"scenarios\[1\]: .* listed twice"),
+    "certificate_zero": (SWEEP_SPEC.replace("[certificate]\nparticles = 4", "[certificate]\nparticles = 0"),
+                         r"certificate\.particles"),
+    "cannot_certify": (None, None),  # below: a scenario with c1 = c2 = 0
+    "engine_cuda": (SWEEP_SPEC.replace('"numpy"', '"cuda"'), r"engine"),
+    "budget_too_large": (SWEEP_SPEC.replace("particles = 6", "particles = 100000000"), r"would need about"),
+    "not_toml": ("scenarios = [\n", r"invalid TOML"),
+    "utf16": (SWEEP_SPEC.encode("utf-16"), r"not UTF-8"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(SWEEP_CASES))
+def test_sweep_bad_spec_refused_before_any_work(tmp_path, capsys, case):
+    text, expect = SWEEP_CASES[case]
+    if case == "cannot_certify":
+        scenario = write(tmp_path, "s.toml", toml_with(c1="0.0", c2="0.0"))
+        text = SWEEP_SPEC.replace('["scenario1"]', f'["{scenario}"]')
+        expect = r"certificate: .*c1 and c2 are both 0"
+    spec = write(tmp_path, "spec.toml", text)
+    out = tmp_path / "sweep"
+    refused(capsys, "sweep", str(spec), "--out", str(out), "--workers", "1", "--quiet", expect=expect)
+    assert not out.exists()
+
+
+def test_sweep_spec_that_is_a_directory(tmp_path, capsys):
+    out = tmp_path / "sweep"
+    refused(capsys, "sweep", str(tmp_path), "--out", str(out), expect=r"directory")
+    assert not out.exists()

@@ -13,6 +13,7 @@ from staghunt.costs.formation import (
     nearest_waypoint_distance,
 )
 from staghunt.costs.model import CostModel, full_paths, to_absolute
+from staghunt.errors import FieldError
 from staghunt.world.geometry import prism_distance
 from staghunt.costs.single import segment_axis_distance
 
@@ -158,20 +159,12 @@ def outside_site(model: CostModel, waypoints: np.ndarray, names: list[str]) -> l
     return out
 
 
-def check_waypoints(waypoints: object, n_uavs: int, what: str = "waypoints") -> np.ndarray:
-    """``waypoints`` as a float ``(N, K, 3)`` array, or ``ValueError`` (one line) when it has
-    another shape, holds a non-finite number or a magnitude beyond
-    :data:`staghunt.inputs.MAX_MAGNITUDE` (absurd coordinates overflow the costs)."""
-    from staghunt.inputs import MAX_MAGNITUDE
-
-    try:
-        wp = np.asarray(waypoints, dtype=float)
-    except (TypeError, ValueError, OverflowError):
-        raise ValueError(f"{what}: expected numbers in an (N, K, 3) array") from None
-    if wp.ndim != 3 or wp.shape[0] != n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
-        raise ValueError(f"{what}: expected shape (N={n_uavs}, K>=1, 3), got {wp.shape}")
-    if not np.all(np.isfinite(wp)):
-        raise ValueError(f"{what}: must be finite numbers")
-    if np.max(np.abs(wp)) > MAX_MAGNITUDE:
-        raise ValueError(f"{what}: a coordinate beyond the supported magnitude {MAX_MAGNITUDE:.0e}")
-    return wp
+def check_inside_site(model: CostModel, waypoints: np.ndarray, names: list[str], source: str | None = None) -> None:
+    """Refuse a plan that the site does not hold: a :class:`~staghunt.errors.FieldError` (field
+    ``waypoints``) naming the first waypoint outside the site box (:func:`outside_site`) and
+    ``source``, the file the plan comes from (certify, fly: no search, no flight for it)."""
+    outside = outside_site(model, waypoints, names)
+    if outside:
+        where = f"{source}: uavs: " if source else ""
+        more = f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""
+        raise FieldError(f"{where}{outside[0]}{more}", "waypoints")

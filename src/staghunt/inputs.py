@@ -8,6 +8,8 @@ scenario loader, PATHS.json, result.json and every command).
 - :func:`parse_json` / :func:`parse_toml` turn every parser failure (including the
   ``RecursionError`` of deeply nested data and Python's digit limit for huge integers) into
   ``ValueError``.
+- :func:`check_waypoints` refuses a plan's waypoints that are no finite ``(N, K, 3)`` array
+  of moderate magnitude (every entry point that takes waypoints: certify, evaluate, fly).
 - :func:`check_magnitudes` refuses numbers beyond :data:`MAX_MAGNITUDE` (absurd coordinates,
   weights or heights that would overflow the costs) and naming the element.
 - :func:`clip` shortens echoed text (a 100,000-character key) for error lines.
@@ -27,6 +29,8 @@ import stat
 import tomllib
 from collections.abc import Mapping
 from typing import Any
+
+import numpy as np
 
 from staghunt.errors import FieldError
 
@@ -182,6 +186,24 @@ def check_magnitudes(data: Any, limit: float = MAX_MAGNITUDE, depth_limit: int =
                         else "use metres and moderate weights")
                 raise ValueError(f"{key_path(where)}: {text} is beyond the supported magnitude "
                                  f"{limit:.0e} ({hint})")
+
+
+def check_waypoints(waypoints: object, n_uavs: int, what: str = "waypoints") -> np.ndarray:
+    """``waypoints`` as a float ``(N, K, 3)`` array, or :class:`~staghunt.errors.FieldError`
+    (field ``waypoints``, one line starting with ``what``) when it has another shape, holds a
+    non-finite number or a magnitude beyond :data:`MAX_MAGNITUDE` (absurd coordinates overflow
+    the costs)."""
+    try:
+        wp = np.asarray(waypoints, dtype=float)
+    except (TypeError, ValueError, OverflowError):
+        raise FieldError(f"{what}: expected numbers in an (N, K, 3) array", "waypoints") from None
+    if wp.ndim != 3 or wp.shape[0] != n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
+        raise FieldError(f"{what}: expected shape (N={n_uavs}, K>=1, 3), got {wp.shape}", "waypoints")
+    if not np.all(np.isfinite(wp)):
+        raise FieldError(f"{what}: must be finite numbers", "waypoints")
+    if np.max(np.abs(wp)) > MAX_MAGNITUDE:
+        raise FieldError(f"{what}: a coordinate beyond the supported magnitude {MAX_MAGNITUDE:.0e}", "waypoints")
+    return wp
 
 
 _SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")

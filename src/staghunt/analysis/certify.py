@@ -12,10 +12,9 @@ from typing import Any, Callable
 import numpy as np
 
 from staghunt.budget import check_memory, estimate_certify
-from staghunt.checks import check_waypoints, outside_site
+from staghunt.checks import check_inside_site
 from staghunt.costs import CostModel
 from staghunt.engine import Engine, get_engine
-from staghunt.errors import FieldError
 from staghunt.io.certificate import certificate_to_dict
 from staghunt.io.result_json import read_result
 from staghunt.scenario.model import Scenario, SolverSettings
@@ -75,18 +74,15 @@ def check_certify_plan(scenario: Scenario, waypoints: np.ndarray, options: Certi
                        settings: SolverSettings | None = None, engine: "str | Engine" = "auto",
                        threads: int | None = None, warn: Callable[[str], None] | None = None,
                        source: str | None = None) -> tuple[CertifyRequest, Engine]:
-    """Every check a certificate of ``waypoints`` needs, made once: finite and moderate, inside
-    the site box, the budget and settings (:func:`staghunt.solvers.response.check_certify`), the
-    engine and the memory. ``source``: the file the plan comes from (named in the messages).
-    Returns the checked request and the resolved engine for :func:`run_certificate`."""
-    where = f"{source}: " if source else ""
-    wp = check_waypoints(waypoints, scenario.n_uavs)
-    outside = outside_site(CostModel.from_scenario(scenario), wp, [u.name for u in scenario.team])
-    if outside:  # no certificate for a plan the site does not hold
-        more = f" (and {len(outside) - 1} more)" if len(outside) > 1 else ""
-        raise FieldError(f"{where}{'uavs: ' if source else ''}{outside[0]}{more}", "waypoints")
-    request = check_certify(scenario, wp, options, seed, settings,
+    """Every check a certificate of ``waypoints`` needs, made once: the plan, the seed, the
+    budget and settings (:func:`staghunt.solvers.response.check_certify`), the plan inside the
+    site box, the engine and the memory. ``source``: the file the plan comes from (named in
+    the messages). Returns the checked request and the resolved engine for
+    :func:`run_certificate`."""
+    request = check_certify(scenario, waypoints, options, seed, settings,
                             what=f"{source}: settings" if source else "certificate settings")
+    wp = request.waypoints
+    check_inside_site(CostModel.from_scenario(scenario), wp, [u.name for u in scenario.team], source)
     resolved = get_engine(engine, threads)
     check_memory(estimate_certify(scenario.n_uavs, len(scenario.world.cylinders), wp.shape[1],
                                   options.particles, options.iterations, resolved, threads),

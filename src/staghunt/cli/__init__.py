@@ -5,7 +5,8 @@ schema), :mod:`~staghunt.cli.plan` (plan, evaluate), :mod:`~staghunt.cli.analysi
 certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly),
 :mod:`~staghunt.cli.sweep` (sweep);
 :mod:`~staghunt.cli.common` holds what they share (exit codes, option blocks, error lines, the
-terminal status line).
+terminal status line). A command's help is its handler's docstring, its exit codes listed after
+its options (:func:`~staghunt.cli.common.command`).
 
 Exit codes:
 
@@ -32,7 +33,9 @@ import warnings
 from typing import Sequence
 
 from staghunt.cli import analysis, fly, missions, plan, scenarios, sweep
-from staghunt.cli.common import EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line, say
+from staghunt.cli.common import (
+    EXIT_BROKEN_PIPE, EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line, say,
+)
 from staghunt.inputs import clip
 from staghunt.cli.plan import ProgressReporter, summary_table
 
@@ -58,10 +61,6 @@ def build_parser() -> argparse.ArgumentParser:
     fly.add_commands(sub)
     sweep.add_commands(sub)
     return parser
-
-
-EXIT_BROKEN_PIPE = 128 + 13
-"""Exit code when stdout's reader went away (as if ended by SIGPIPE)."""
 
 
 def _silence_stdout() -> None:

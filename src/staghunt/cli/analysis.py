@@ -22,32 +22,29 @@ from typing import Any, TextIO
 
 import numpy as np
 
-from staghunt.analysis.compare import DEFAULT_METHODS, CompareListener, RunRecord
+from staghunt.analysis.certify import certificate_table, certificate_to_dict, certify_result_file
+from staghunt.analysis.compare import (
+    DEFAULT_METHODS, CompareListener, RunRecord, certificate_file, check_compare, format_report, parse_methods,
+    parse_seeds, run_compare, run_file,
+)
 from staghunt.cli.common import (  # the shared options, exit codes and error lines
     EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options,
     add_engine_options, add_quiet_option, add_run_options, add_scenario_argument, budget_settings,
-    certify_options, check_out_dir, check_path_lengths, checked_request, command, engine_kwargs, error,
+    add_cluster_options, certify_options, check_out_dir, check_path_lengths, command, engine_kwargs, error,
     int_at_least, one_line, os_reason, path_argument, safe_name, say,
 )
+from staghunt.io.atomic import check_replaceable
 from staghunt.io.numbers import number_text
+from staghunt.io.result_json import read_result, write_json_atomic
+from staghunt.scenario import load_scenario
+from staghunt.study.executor import make_executor, runs_here
 
 
 
 
 def add_commands(subparsers: Any) -> None:
     """Register ``compare`` and ``certify`` on ``subparsers`` (from ``add_subparsers``)."""
-    p = command(
-        subparsers, "compare", cmd_compare,
-        "run every method on every seed; table, dominance, Nash gaps, figure",
-        description="Plan SCENARIO with every method on every seed with the same budget, re-score "
-        "every plan with the same J_n, test whether the game allocation Pareto-dominates each "
-        "other method's (per seed), certify every plan (Nash gaps), and put the paper's Fig. 8 "
-        "numbers next to ours. Writes DIR/runs/<method>-s<seed>.json (+ .certify.json) as each "
-        "run finishes, DIR/compare.json, DIR/compare.csv and DIR/compare.png. Runs already in DIR "
-        "are not planned again, so an interrupted comparison resumes where it stopped.",
-        epilog="Budget: every method spends particles x (iterations + 1) x N single-UAV path "
-        "evaluations. Exit codes: 0 done, 2 bad input, 130 interrupted (finished runs kept).",
-    )
+    p = command(subparsers, "compare", cmd_compare, {EXIT_OK: "done", EXIT_INTERRUPTED: "interrupted (finished runs kept)"})
     add_scenario_argument(p)
     p.add_argument("--methods", metavar="LIST", default=",".join(DEFAULT_METHODS),
                    help=f"comma-separated methods (default: {','.join(DEFAULT_METHODS)})")
@@ -55,22 +52,10 @@ def add_commands(subparsers: Any) -> None:
     add_run_options(p, "runs/<scenario>-compare")
     add_certificate_options(p, "certify-", skip="the equilibrium certificates")
     p.add_argument("--no-figure", action="store_true", help="do not draw DIR/compare.png")
-    p.add_argument("--workers", type=int_at_least(1), metavar="N",
-                   help="run the runs on a local Dask cluster of N worker processes, one thread each "
-                   "(default: one run after the other in this process; see 'staghunt sweep')")
-    p.add_argument("--scheduler", metavar="ADDRESS", help="run the runs on the Dask scheduler at ADDRESS")
+    add_cluster_options(p, "runs", "one run after the other in this process; see 'staghunt sweep'")
 
-    p = command(
-        subparsers, "certify", cmd_certify, "equilibrium certificate of a plan: each UAV's Nash gap",
-        description="For every UAV of the plan in RESULT.json, fix the others' paths and "
-        "re-optimise its own path on its own J_n (single-player SPSO, warm-started from its "
-        "current path, seeded). Its Nash gap is the best unilateral improvement found, absolute "
-        "and relative to its J_n. The plan is reported as an epsilon-equilibrium when every "
-        "relative gap is <= epsilon; otherwise the UAV that would deviate is named. The search "
-        "is heuristic: a gap is a lower bound on the true one.",
-        epilog="Exit codes: 0 epsilon-equilibrium, 3 not one (a UAV would deviate, or the plan is "
-        "infeasible), 2 bad input, 130 interrupted.",
-    )
+    p = command(subparsers, "certify", cmd_certify, {
+        EXIT_OK: "epsilon-equilibrium", EXIT_NEGATIVE: "not one (a UAV would deviate, or the plan is infeasible)"})
     p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
     add_certificate_options(p, "")
     p.add_argument("--seed", type=int_at_least(0), metavar="N", help="base seed of the searches (default: the plan's seed)")
@@ -145,22 +130,31 @@ def _pct(v: float) -> str:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
-    """``staghunt compare``: see :func:`staghunt.analysis.compare.run_compare`."""
-    from staghunt.analysis.compare import format_report, parse_methods, parse_seeds, run_compare
-    from staghunt.scenario import load_scenario
+    """run every method on every seed; table, dominance, Nash gaps, figure
 
+    Plan SCENARIO with every method on every seed with the same budget, re-score every plan with the
+    same J_n, test whether the game allocation Pareto-dominates each other method's (per seed),
+    certify every plan (Nash gaps), and put the paper's Fig. 8 numbers next to ours. Writes
+    DIR/runs/<method>-s<seed>.json (+ .certify.json) as each run finishes, DIR/compare.json,
+    DIR/compare.csv and DIR/compare.png. Runs already in DIR are not planned again, so an
+    interrupted comparison resumes where it stopped. Budget: every method spends particles x
+    (iterations + 1) x N single-UAV path evaluations.
+    """
+    workers = args.workers if args.workers is not None else 1
     try:
         methods = parse_methods(args.methods)
         seeds = parse_seeds(args.seeds)
         scenario = load_scenario(args.scenario)
-        settings = budget_settings(scenario, args)
         out = Path(args.out) if args.out is not None else Path("runs") / f"{safe_name(scenario.name)}-compare"
         check_out_dir(out)
-        for m in methods:  # every run must be possible (and fit in memory) before the first starts
-            checked_request(scenario, settings, args, certify_options(args), method=m)
+        # Every run must be possible (and fit in memory) before the first starts; on a cluster
+        # each run takes one thread (the workers are the parallelism).
+        request = check_compare(scenario, methods, seeds, budget_settings(scenario, args), certify_options(args),
+                                engine=args.engine, threads=args.threads if runs_here(args.scheduler, workers) else 1,
+                                warn=say)
     except (ValueError, OSError) as exc:
         return error(one_line(exc, "compare"))
-    certify = certify_options(args)
+    settings, certify = request.settings, request.certify
     total = len(methods) * len(seeds)
     if not args.quiet:
         cert = "no certificates" if certify is None else (
@@ -171,23 +165,17 @@ def cmd_compare(args: argparse.Namespace) -> int:
             f"iterations, K = {settings.waypoints}; {cert}; writing to {out}",
             file=sys.stderr,
         )
-    from staghunt.study.executor import make_executor
-
     try:
-        executor = make_executor(args.scheduler, args.workers if args.workers is not None else 1)
+        executor = make_executor(args.scheduler, workers, args.connect_timeout)
     except ValueError as exc:  # ClusterError: the scheduler cannot be reached
         return error(one_line(exc))
     if not executor.local:  # compile once here, into the on-disk cache the workers load
-        from staghunt.engine import get_engine
-
-        prepare = getattr(get_engine(args.engine, 1), "prepare", None)
+        prepare = getattr(request.runs[(methods[0], seeds[0])].engine, "prepare", None)
         if callable(prepare):
             prepare()
     listener = _CompareProgress(sys.stderr, args.quiet)
     try:
-        report = run_compare(scenario, out, methods=methods, seeds=seeds, settings=settings,
-                             certify=certify, listener=listener, plan_options=engine_kwargs(args),
-                             executor=executor)
+        report = run_compare(request, out, listener=listener, executor=executor)
     except KeyboardInterrupt:
         executor.close()
         listener.close()
@@ -221,8 +209,6 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
 
 def _count_done(out: Path, methods: tuple[str, ...], seeds: tuple[int, ...], certified: bool) -> int:
-    from staghunt.analysis.compare import certificate_file, run_file
-
     return sum(
         run_file(out, m, s).exists() and (not certified or certificate_file(out, m, s).exists())
         for s in seeds for m in methods
@@ -230,10 +216,14 @@ def _count_done(out: Path, methods: tuple[str, ...], seeds: tuple[int, ...], cer
 
 
 def cmd_certify(args: argparse.Namespace) -> int:
-    """``staghunt certify``: see :func:`staghunt.analysis.certify.certify_result_file`."""
-    from staghunt.analysis.certify import certificate_table, certificate_to_dict, certify_result_file
-    from staghunt.io.result_json import read_result, write_json_atomic
+    """equilibrium certificate of a plan: each UAV's Nash gap
 
+    For every UAV of the plan in RESULT.json, fix the others' paths and re-optimise its own path on
+    its own J_n (single-player SPSO, warm-started from its current path, seeded). Its Nash gap is
+    the best unilateral improvement found, absolute and relative to its J_n. The plan is reported as
+    an epsilon-equilibrium when every relative gap is <= epsilon; otherwise the UAV that would
+    deviate is named. The search is heuristic: a gap is a lower bound on the true one.
+    """
     line = StatusLine(sys.stderr)
 
     def progress(uav: int, n_uavs: int, iteration: int, total: int) -> None:
@@ -247,8 +237,6 @@ def cmd_certify(args: argparse.Namespace) -> int:
             check_path_lengths(target, "--out")
             if target.is_dir():
                 raise ValueError(f"--out {str(target)!r} is a directory; give a file name")
-            from staghunt.io.atomic import check_replaceable
-
             check_replaceable(target)  # before the search: never replace a device or a FIFO
             if not target.parent.is_dir() and str(target.parent):
                 raise ValueError(f"--out {str(target)!r}: no such directory {str(target.parent)!r}")

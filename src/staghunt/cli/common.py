@@ -5,6 +5,7 @@ terminal status line."""
 from __future__ import annotations
 
 import argparse
+import inspect
 import math
 import os
 import re
@@ -14,12 +15,23 @@ import time
 from pathlib import Path
 from typing import Any, TextIO
 
+from staghunt.study.executor import DEFAULT_CONNECT_TIMEOUT_S
+
 PROG = "staghunt"
 EXIT_OK = 0
 EXIT_USAGE = 2
 EXIT_NEGATIVE = 3
 """The command ran but the answer is no: an infeasible plan, or a plan that is no equilibrium."""
 EXIT_INTERRUPTED = 130
+EXIT_BROKEN_PIPE = 128 + 13
+"""Exit code when stdout's reader went away (as if ended by SIGPIPE)."""
+
+SHARED_EXITS = {
+    EXIT_USAGE: "bad input",
+    EXIT_INTERRUPTED: "interrupted",
+    EXIT_BROKEN_PIPE: "stdout closed early (files already written)",
+}
+"""What every subcommand's exit codes 2, 130 and 141 mean, unless it words them itself."""
 
 
 class UsageError(Exception):
@@ -106,11 +118,26 @@ def add_engine_options(p: argparse.ArgumentParser) -> None:
                    help=f"threads of the numba engine, at most {MAX_THREADS} (default: adaptive)")
 
 
-def command(sub: Any, name: str, func: Any, help: str, **kwargs: Any) -> argparse.ArgumentParser:
-    """Register the subcommand ``name`` (handler ``func(args) -> exit code``) on ``sub``."""
-    p = sub.add_parser(name, help=help, **kwargs)
+def command(sub: Any, name: str, func: Any, exits: dict[int, str] | None = None) -> argparse.ArgumentParser:
+    """Register the subcommand ``name`` on ``sub``: its handler ``func(args) -> exit code``,
+    whose docstring is the command's help (its first line in the list of commands, the
+    paragraphs after it the command's description, rewrapped by argparse). ``exits``: what its
+    own exit codes mean (``0``, ``3``, ...; its words for 2, 130 or 141 replace
+    :data:`SHARED_EXITS`), listed after its options (:func:`exit_codes`)."""
+    summary, _, description = inspect.cleandoc(func.__doc__ or "").partition("\n\n")
+    p = sub.add_parser(name, help=summary, description=description or None,
+                       epilog=exit_codes(exits) if exits is not None else None)
     p.set_defaults(func=func)
     return p
+
+
+def exit_codes(exits: dict[int, str]) -> str:
+    """``Exit codes: 0 ..., 3 ..., 2 bad input, 130 interrupted, 141 ...``: a command's own
+    codes in their order, then the shared ones (:data:`SHARED_EXITS`), in its words where it
+    gives them."""
+    codes = {**{c: w for c, w in exits.items() if c not in SHARED_EXITS},
+             **{c: exits.get(c, w) for c, w in SHARED_EXITS.items()}}
+    return "Exit codes: " + ", ".join(f"{code} {words}" for code, words in codes.items()) + "."
 
 
 def add_scenario_argument(p: argparse.ArgumentParser) -> None:
@@ -158,6 +185,7 @@ FIELD_FLAGS = {
 
 COMMAND_FLAGS = {
     "certify": {"certify": "--particles, --iterations, --epsilon", "settings": "the file's settings"},
+    "compare": {"method": "--methods"},
     "fly": {"settings": "--particles, --iterations, --waypoints or the scenario's [solver]"},
 }
 
@@ -238,17 +266,47 @@ def certify_options(args: argparse.Namespace) -> Any:
     return CertifyOptions(args.certify_particles, args.certify_iterations, args.epsilon)
 
 
-def add_out_option(p: argparse.ArgumentParser, default: str) -> None:
-    """``--out DIR``, the output directory (not empty: :func:`path_argument`)."""
-    p.add_argument("--out", metavar="DIR", type=path_argument, help=f"output directory (default: {default})")
+def add_out_option(p: argparse.ArgumentParser, default: str | None = None) -> None:
+    """``--out DIR``, the output directory (not empty: :func:`path_argument`); required without a
+    ``default`` (what it is when not given, for the help)."""
+    if default is None:
+        p.add_argument("--out", metavar="DIR", type=path_argument, required=True, help="output directory")
+    else:
+        p.add_argument("--out", metavar="DIR", type=path_argument, help=f"output directory (default: {default})")
+
+
+def add_plots_option(p: argparse.ArgumentParser, what: str = "figures") -> None:
+    """``--no-plots``: do not draw ``what``."""
+    p.add_argument("--no-plots", action="store_true", help=f"do not write {what}")
+
+
+def add_seed_option(p: argparse.ArgumentParser, help: str = "random seed (default: 0)") -> None:
+    """``--seed N``, an integer >= 0, default 0."""
+    p.add_argument("--seed", type=int_at_least(0), default=0, metavar="N", help=help)
+
+
+def add_cluster_options(p: argparse.ArgumentParser, what: str, workers_default: str) -> None:
+    """Where the ``what`` run (compare's runs, sweep's tasks): ``--workers N`` processes of a
+    local Dask cluster (``workers_default``: what it is when not given) or the Dask
+    ``--scheduler ADDRESS``, reached within ``--connect-timeout S``."""
+    p.add_argument("--workers", type=int_between(1, 1024), metavar="N",
+                   help=f"run the {what} on a local Dask cluster of N worker processes, one thread each "
+                   f"(default: {workers_default})")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help=f"run the {what} on the Dask scheduler at ADDRESS (e.g. tcp://host:8786)")
+    p.add_argument("--connect-timeout", type=number_between(0, 3600, "seconds", above_low=True), metavar="S",
+                   default=DEFAULT_CONNECT_TIMEOUT_S,
+                   help=f"seconds to reach --scheduler before giving up (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
 
 
 def add_quiet_option(p: argparse.ArgumentParser, help: str = "no progress on stderr") -> None:
     p.add_argument("--quiet", action="store_true", help=help)
 
 
-def add_run_options(p: argparse.ArgumentParser, out_default: str, quiet_help: str = "no progress on stderr") -> None:
-    """What every planning command takes: the budget, ``--out DIR``, the engine, ``--quiet``."""
+def add_run_options(p: argparse.ArgumentParser, out_default: str | None,
+                    quiet_help: str = "no progress on stderr") -> None:
+    """What every planning command takes: the budget, ``--out DIR`` (:func:`add_out_option`), the
+    engine, ``--quiet``."""
     add_budget_options(p)
     add_out_option(p, out_default)
     add_engine_options(p)

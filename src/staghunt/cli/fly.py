@@ -11,41 +11,23 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from staghunt.cli.common import (
-    EXIT_NEGATIVE,
-    EXIT_OK,
-    PROG,
-    add_budget_options,
-    add_engine_options,
-    add_quiet_option,
-    check_out_dir,
-    command,
-    engine_kwargs,
-    int_at_least,
-    number_between,
-    one_line,
-    os_reason,
-    path_argument,
-    say,
+    EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, EXIT_USAGE, PROG, add_plots_option, add_run_options, add_seed_option,
+    check_out_dir, command, engine_kwargs, int_at_least, number_between, one_line, os_reason, path_argument, say,
 )
+from staghunt.flight import FlyConfig, check_flight, fly
 from staghunt.inputs import clip
+from staghunt.io.flight_files import latency_summary, write_flight
 
 
 def add_commands(sub: Any) -> None:
-    p = command(
-        sub, "fly", cmd_fly, "fly a plan in closed loop: simulated multirotors, sensing, re-planning in flight",
-        description="Plan SCENARIO (or take the plan of RESULT.json), make it sound against the "
-        "site's known motions, and fly it with simulated multirotors (rotorpy, SE(3) controller) "
-        "at 100 Hz; the planner receives the UAVs' states at 10 Hz, senses obstacles that appear, "
-        "predicts conflicts with moving ones, and re-solves the game in flight (warm-started, "
-        "certified). Writes DIR/flight.csv, replans.json, flight.json (metrics), figures, "
-        "flight.gif and replay.html (an offline 3-D replay). Events: docs/scenario-format.md.",
-        epilog="Exit codes: 0 arrived safely, 3 stopped (goal unreachable) or unsafe flight (the "
-        "log is still written), 2 bad input (before any simulation), 130 interrupted.",
-    )
+    p = command(sub, "fly", cmd_fly, {
+        EXIT_OK: "arrived safely", EXIT_NEGATIVE: "stopped (goal unreachable) or unsafe flight (the log is still written)",
+        EXIT_USAGE: "bad input (before any simulation)", EXIT_INTERRUPTED: "interrupted (nothing written)"})
     p.add_argument("source", metavar="SCENARIO|RESULT.json",
                    help="built-in scenario, scenario .toml file, or a result.json written by 'staghunt plan'")
     p.add_argument("--events", metavar="FILE", type=path_argument,
@@ -54,45 +36,42 @@ def add_commands(sub: Any) -> None:
                    help="mean wind speed with Dryden turbulence (default 0)")
     p.add_argument("--wind-heading", type=number_between(-360, 360, "degrees"), default=0.0, metavar="DEG",
                    help="direction the wind blows towards, degrees counter-clockwise from east (default 0)")
-    p.add_argument("--seed", type=int_at_least(0), default=0, metavar="N", help="seed of the whole episode (default 0)")
-    p.add_argument("--out", metavar="DIR", type=path_argument, required=True, help="output directory")
+    add_seed_option(p, "seed of the whole episode (default 0)")
     p.add_argument("--latency", type=number_between(0.01, 10, "s"), default=None, metavar="S",
                    help="latency budget between a trigger and the switch to the new plan (default 0.3)")
     p.add_argument("--replan-particles", type=int_at_least(1), metavar="N", help="particles of each re-plan's game")
     p.add_argument("--replan-iterations", type=int_at_least(1), metavar="N", help="iterations of each re-plan's game")
-    p.add_argument("--no-plots", action="store_true", help="no figures, animation or replay page")
-    add_budget_options(p)
-    add_engine_options(p)
-    add_quiet_option(p)
+    add_plots_option(p, "figures, the animation or the replay page")
+    add_run_options(p, None)
 
 
 def cmd_fly(args: argparse.Namespace) -> int:
-    from dataclasses import replace
+    """fly a plan in closed loop: simulated multirotors, sensing, re-planning in flight
 
-    from staghunt.flight import FlyConfig, fly
-    from staghunt.io.flight_files import write_flight
-
+    Plan SCENARIO (or take the plan of RESULT.json), make it sound against the site's known motions,
+    and fly it with simulated multirotors (rotorpy, SE(3) controller) at 100 Hz; the planner
+    receives the UAVs' states at 10 Hz, senses obstacles that appear, predicts conflicts with moving
+    ones, and re-solves the game in flight (warm-started, certified). Writes DIR/flight.csv,
+    replans.json, flight.json (metrics), figures, flight.gif and replay.html (an offline 3-D
+    replay). Events: docs/scenario-format.md.
+    """
     out_dir = Path(args.out)
     check_out_dir(out_dir, "flight.json")
-    config = FlyConfig(wind=args.wind, wind_heading_deg=args.wind_heading)
     changes = {"latency_budget": args.latency, "replan_particles": args.replan_particles,
                "replan_iterations": args.replan_iterations}
-    config = replace(config, **{k: v for k, v in changes.items() if v is not None})
-    settings = None
-    if any(v is not None for v in (args.particles, args.iterations, args.waypoints, args.starts)):
-        from staghunt.flight.loop import _source
-
-        scenario, _, plan_settings = _source(args.source)
-        settings = (plan_settings or scenario.solver).with_(
-            particles=args.particles, iterations=args.iterations, waypoints=args.waypoints, starts=args.starts)
+    config = replace(FlyConfig(wind=args.wind, wind_heading_deg=args.wind_heading),
+                     **{k: v for k, v in changes.items() if v is not None})
+    budget = {"particles": args.particles, "iterations": args.iterations, "waypoints": args.waypoints,
+              "starts": args.starts}
+    request = check_flight(args.source, events=args.events, seed=args.seed, config=config, budget=budget,
+                           warn=say, **engine_kwargs(args))
 
     def progress(t: float, t_end: float) -> None:
         if not args.quiet and sys.stderr.isatty():
             sys.stderr.write(f"\r{PROG}: flying, t = {t:5.1f} s ")
             sys.stderr.flush()
 
-    result = fly(args.source, events=args.events, seed=args.seed, config=config, settings=settings,
-                 progress=progress, **engine_kwargs(args))
+    result = fly(request, progress=progress)
     try:
         out_dir.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -113,8 +92,6 @@ def cmd_fly(args: argparse.Namespace) -> int:
 
 
 def _report(result: Any) -> None:
-    from staghunt.io.flight_files import latency_summary
-
     sc = result.scenario
     print(f"{sc.name} / seed {result.seed}: {len(result.times) / result.config.sim_rate:.1f} s of flight "
           f"simulated at {result.config.sim_rate:g} Hz in {result.wall_time_s:.1f} s")

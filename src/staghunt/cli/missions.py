@@ -11,7 +11,7 @@ import argparse
 import sys
 from typing import Any, Callable, Sequence
 
-from staghunt.cli.common import EXIT_NEGATIVE, EXIT_OK, PROG, command, error, one_line
+from staghunt.cli.common import EXIT_NEGATIVE, EXIT_OK, PROG, add_out_option, add_plots_option, command, error, one_line
 
 OPTIONS_WITH_NEGATIVE_VALUES = ("--origin",)
 
@@ -60,19 +60,12 @@ _altitude_frame.__name__ = "altitude frame"
 def add_commands(sub: Any) -> None:
     from staghunt.missions import FORMATS
 
-    p = command(
-        sub, "export", cmd_export, "mission files of a plan for ground stations (QGC, ArduPilot, DJI, Litchi)",
-        description="Geo-reference the plan in RESULT.json, time it (common waypoint times, within "
-        "the scenario's [vehicle] limits), check separation and clearance in time, and write the "
-        "mission files to DIR: uav{n}.plan (QGroundControl), uav{n}.waypoints (QGC WPL 110), "
-        "uav{n}.kmz (DJI WPML), uav{n}.litchi.csv (Litchi), mission.kml, mission.geojson, "
-        "trajectories.csv, mission.json (timing, datums, minima), speed.png and separation.png. "
-        "docs/missions.md says how to load each.",
-        epilog="Exit codes: 0 written, 3 refused (infeasible plan, or unsafe in time or in the "
-        "simulated flight; --force writes it marked unsafe), 2 bad input, 130 interrupted.",
-    )
+    p = command(sub, "export", cmd_export, {
+        EXIT_OK: "written",
+        EXIT_NEGATIVE: "refused (infeasible plan, or unsafe in time or in the simulated flight; --force writes it "
+        "marked unsafe)"})
     p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
-    p.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    add_out_option(p)
     p.add_argument("--origin", type=_origin, metavar="LAT,LON,ALT",
                    help="geodetic origin of the site frame's (0, 0, 0): degrees, degrees, metres AMSL "
                    "(default: the scenario's [origin]); e.g. --origin -33.8837,151.2006,30")
@@ -84,7 +77,7 @@ def add_commands(sub: Any) -> None:
                    "terrain (above the scenario's terrain under each waypoint: MAVLink frame 10, Litchi "
                    "above ground; DJI has none)")
     p.add_argument("--force", action="store_true", help="export an infeasible or unsafe plan, marked as such")
-    p.add_argument("--no-plots", action="store_true", help="do not draw speed.png and separation.png")
+    add_plots_option(p, "speed.png and separation.png")
     p.add_argument("--simulate", action="store_true",
                    help="first fly trajectories.csv with simulated multirotors (rotorpy, 100 Hz, no wind) "
                    "and report tracking error, separation and clearance in flight in mission.json; a "
@@ -92,6 +85,14 @@ def add_commands(sub: Any) -> None:
 
 
 def cmd_export(args: argparse.Namespace) -> int:
+    """mission files of a plan for ground stations (QGC, ArduPilot, DJI, Litchi)
+
+    Geo-reference the plan in RESULT.json, time it (common waypoint times, within the scenario's
+    [vehicle] limits), check separation and clearance in time, and write the mission files to DIR:
+    uav{n}.plan (QGroundControl), uav{n}.waypoints (QGC WPL 110), uav{n}.kmz (DJI WPML),
+    uav{n}.litchi.csv (Litchi), mission.kml, mission.geojson, trajectories.csv, mission.json
+    (timing, datums, minima), speed.png and separation.png. docs/missions.md says how to load each.
+    """
     from staghunt.missions import export_result
     from staghunt.missions.export import ExportRefused
 

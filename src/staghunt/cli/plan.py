@@ -17,11 +17,9 @@ from typing import Any, TextIO
 import numpy as np
 
 from staghunt.cli.common import (  # the shared options, exit codes and error lines
-    EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options, add_run_options,
-    add_scenario_argument, budget_settings, certify_options, check_out_dir, checked_request, command,
-    int_at_least, one_line, os_reason,
-    safe_name,
-    say,
+    EXIT_BROKEN_PIPE, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_certificate_options, add_plots_option,
+    add_run_options, add_scenario_argument, add_seed_option, budget_settings, certify_options, check_out_dir,
+    checked_request, command, one_line, os_reason, safe_name, say,
 )
 from staghunt.inputs import clip
 from staghunt.io.numbers import number_text
@@ -31,21 +29,11 @@ def add_commands(sub: Any) -> None:
     """Register ``plan`` and ``evaluate`` on ``sub`` (from ``add_subparsers``)."""
     from staghunt.solvers import METHODS
 
-    p = command(
-        sub, "plan", cmd_plan, "plan paths for a scenario and write DIR/result.json",
-        description="Plan paths for the team of SCENARIO, then certify the plan: every UAV's "
-        "Nash gap by a unilateral best-response search (the verdict is printed and stored in "
-        "result.json; 'staghunt certify' re-checks with a larger budget). Budget options default "
-        "to the scenario's [solver] settings (the built-ins carry the paper's 2000 particles, "
-        "1500 iterations, K = 10). Memory: the run's arrays are estimated before anything is "
-        "allocated (see --dry-run); a run that cannot fit in the available memory is refused, "
-        "one that needs over a quarter of it is announced on stderr.",
-        epilog="Exit codes: 0 feasible, 3 infeasible (result.json still written), 2 bad input, "
-        "130 interrupted, 141 stdout closed early (result.json already written).",
-    )
+    p = command(sub, "plan", cmd_plan, {EXIT_OK: "feasible", EXIT_NEGATIVE: "infeasible (result.json still written)",
+                                         EXIT_BROKEN_PIPE: "stdout closed early (result.json already written)"})
     add_scenario_argument(p)
     p.add_argument("--method", choices=list(METHODS), default="game", help="planning method (default: game)")
-    p.add_argument("--seed", type=int_at_least(0), default=0, help="random seed (default: 0)")
+    add_seed_option(p)
     add_run_options(p, "runs/<scenario>-<method>-s<seed>",
                     "no progress and no summary table; print only the status and where files went")
     add_certificate_options(p, "certify-", skip="the equilibrium certificate that ends the run")
@@ -53,20 +41,12 @@ def add_commands(sub: Any) -> None:
                    help="budget (default): the method's own stopping rule; certified: the game "
                    "also stops at the first plan the certificate accepts (the time to a certified "
                    "equilibrium, e.g. for re-planning; needs the certificate)")
-    p.add_argument("--no-plots", action="store_true", help="do not write figures")
+    add_plots_option(p)
     p.add_argument("--dry-run", action="store_true",
                    help="check the inputs and print the budget and the memory the run needs "
                    "(estimate), without planning or writing anything")
 
-    p = command(
-        sub, "evaluate", cmd_evaluate, "cost and check given paths (PATHS.json) in a scenario",
-        description="Print the costs and constraint checks of the paths in PATHS.json as JSON. "
-        'PATHS.json: {"uavs": [{"name": optional, "waypoints": [[x, y, h], ...]} or '
-        '{"path": [[x, y, h], ...] from start to goal}, ...]}, h above ground. A result.json '
-        "written by 'staghunt plan' is accepted as PATHS.json too (its paths are evaluated in "
-        "SCENARIO). A waypoint outside the site box makes the paths infeasible.",
-        epilog="Exit codes: 0 feasible, 3 infeasible, 2 bad input.",
-    )
+    p = command(sub, "evaluate", cmd_evaluate, {EXIT_OK: "feasible", EXIT_NEGATIVE: "infeasible"})
     add_scenario_argument(p)
     p.add_argument("paths", metavar="PATHS.json", help="the paths to evaluate")
 
@@ -77,6 +57,15 @@ def add_commands(sub: Any) -> None:
 
 
 def cmd_plan(args: argparse.Namespace) -> int:
+    """plan paths for a scenario and write DIR/result.json
+
+    Plan paths for the team of SCENARIO, then certify the plan: every UAV's Nash gap by a unilateral
+    best-response search (the verdict is printed and stored in result.json; 'staghunt certify'
+    re-checks with a larger budget). Budget options default to the scenario's [solver] settings (the
+    built-ins carry the paper's 2000 particles, 1500 iterations, K = 10). Memory: the run's arrays
+    are estimated before anything is allocated (see --dry-run); a run that cannot fit in the
+    available memory is refused, one that needs over a quarter of it is announced on stderr.
+    """
     from staghunt.api import plan
     from staghunt.io.result_json import write_result
     from staghunt.scenario import load_scenario
@@ -169,6 +158,14 @@ def _dry_run(request: Any, out_dir: Path) -> int:
 
 
 def cmd_evaluate(args: argparse.Namespace) -> int:
+    """cost and check given paths (PATHS.json) in a scenario
+
+    Print the costs and constraint checks of the paths in PATHS.json as JSON. PATHS.json: {"uavs":
+    [{"name": optional, "waypoints": [[x, y, h], ...]} or {"path": [[x, y, h], ...] from start to
+    goal}, ...]}, h above ground. A result.json written by 'staghunt plan' is accepted as PATHS.json
+    too (its paths are evaluated in SCENARIO). A waypoint outside the site box makes the paths
+    infeasible.
+    """
     from staghunt.io.paths_json import evaluate_paths, read_paths
     from staghunt.io.result_json import dumps_strict
     from staghunt.scenario import load_scenario

@@ -11,13 +11,10 @@ from staghunt.cli.common import EXIT_OK, add_scenario_argument, command
 
 def add_commands(sub: Any) -> None:
     """Register ``scenarios``, ``show``, ``methods`` and ``schema`` on ``sub`` (from ``add_subparsers``)."""
-    command(sub, "scenarios", cmd_scenarios, "list the built-in scenarios")
-    add_scenario_argument(command(sub, "show", cmd_show, "print a validated scenario as JSON"))
-    command(sub, "methods", cmd_methods, "list the planning methods")
-    p = command(sub, "schema", cmd_schema, "print the JSON Schema of the scenario file format",
-                description="Print the JSON Schema of the scenario format (TOML files checked as JSON "
-                "data), for editors: 'staghunt schema > scenario.schema.json', then point the editor's "
-                "TOML support at it (see docs/scenario-format.md).")
+    command(sub, "scenarios", cmd_scenarios)
+    add_scenario_argument(command(sub, "show", cmd_show))
+    command(sub, "methods", cmd_methods)
+    p = command(sub, "schema", cmd_schema)
     kind = p.add_mutually_exclusive_group()
     kind.add_argument("--events", action="store_true",
                       help="the schema of an events file ('staghunt fly --events FILE') instead")
@@ -26,6 +23,7 @@ def add_commands(sub: Any) -> None:
 
 
 def cmd_scenarios(args: argparse.Namespace) -> int:
+    """list the built-in scenarios"""
     from staghunt.scenario import builtin_names, load_scenario
 
     names = builtin_names()
@@ -39,6 +37,7 @@ def cmd_scenarios(args: argparse.Namespace) -> int:
 
 
 def cmd_show(args: argparse.Namespace) -> int:
+    """print a validated scenario as JSON"""
     from staghunt.scenario import load_scenario, scenario_to_dict
 
     scenario = load_scenario(args.scenario)
@@ -47,6 +46,7 @@ def cmd_show(args: argparse.Namespace) -> int:
 
 
 def cmd_methods(args: argparse.Namespace) -> int:
+    """list the planning methods"""
     from staghunt.solvers import DESCRIPTIONS, METHODS
 
     width = max((len(n) for n in METHODS), default=0)
@@ -58,6 +58,12 @@ def cmd_methods(args: argparse.Namespace) -> int:
 
 
 def cmd_schema(args: argparse.Namespace) -> int:
+    """print the JSON Schema of the scenario file format
+
+    Print the JSON Schema of the scenario format (TOML files checked as JSON data), for editors:
+    'staghunt schema > scenario.schema.json', then point the editor's TOML support at it (see
+    docs/scenario-format.md).
+    """
     from staghunt.scenario.schema import EventsFile, json_schema
 
     if args.sweep:

@@ -16,37 +16,21 @@ from pathlib import Path
 from typing import Any
 
 from staghunt.cli.common import (
-    EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, PROG, StatusLine, add_quiet_option, check_out_dir, command,
-    error, int_between, number_between, one_line, path_argument, say,
+    EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, EXIT_USAGE, PROG, StatusLine, add_cluster_options, add_out_option,
+    add_quiet_option, check_out_dir, command, error, number_between, one_line, path_argument, say,
 )
 
 
 def add_commands(sub: Any) -> None:
     """Register ``sweep`` on ``sub`` (from ``add_subparsers``)."""
-    from staghunt.study.executor import DEFAULT_CONNECT_TIMEOUT_S
     from staghunt.study.sweep import FLUSH_EVERY_S
 
-    p = command(
-        sub, "sweep", cmd_sweep, "run a grid of plans (scenarios x overrides x methods x seeds) on Dask",
-        description="Plan and certify every task of SPEC.toml (scenarios, a grid of overrides, "
-        "methods, seeds; see docs/sweep.md and 'staghunt schema --sweep') on a Dask cluster: by "
-        "default a local one with one worker process per core, or the one at --scheduler. Rows "
-        "go to DIR/results.parquet (a Parquet dataset, one row per task) as tasks finish; tasks "
-        "already there are skipped, so the same command resumes. Figures: DIR/beta_tradeoff.png "
-        "and DIR/convergence.png.",
-        epilog="Exit codes: 0 all tasks finished, 3 some tasks failed (DIR/errors.parquet; rerun "
-        "to retry them), 2 bad input or unreachable scheduler, 130 interrupted (finished tasks kept).",
-    )
+    p = command(sub, "sweep", cmd_sweep, {
+        EXIT_OK: "all tasks finished", EXIT_NEGATIVE: "some tasks failed (DIR/errors.parquet; rerun to retry them)",
+        EXIT_USAGE: "bad input or unreachable scheduler", EXIT_INTERRUPTED: "interrupted (finished tasks kept)"})
     p.add_argument("spec", metavar="SPEC.toml", type=path_argument, help="the sweep spec")
-    p.add_argument("--out", metavar="DIR", type=path_argument,
-                   help="output directory (default: runs/<spec name>-sweep)")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="join the Dask scheduler at ADDRESS (e.g. tcp://host:8786) instead of starting a local cluster")
-    p.add_argument("--workers", type=int_between(1, 1024), metavar="N",
-                   help="worker processes of the local cluster (default: one per core; 1 runs in this process)")
-    p.add_argument("--connect-timeout", type=number_between(0, 3600, "seconds", above_low=True), metavar="S",
-                   default=DEFAULT_CONNECT_TIMEOUT_S,
-                   help=f"seconds to reach --scheduler before giving up (default: {DEFAULT_CONNECT_TIMEOUT_S:g})")
+    add_out_option(p, "runs/<spec name>-sweep")
+    add_cluster_options(p, "tasks", "one per core; 1 runs in this process")
     p.add_argument("--flush-every", type=number_between(0, 3600, "seconds"), metavar="S", default=FLUSH_EVERY_S,
                    help=f"write finished rows at most S seconds after their task (0: after every task; "
                    f"default: {FLUSH_EVERY_S:g})")
@@ -100,7 +84,14 @@ class _Progress:
 
 
 def cmd_sweep(args: argparse.Namespace) -> int:
-    """``staghunt sweep``: see :func:`staghunt.study.sweep.run_sweep`."""
+    """run a grid of plans (scenarios x overrides x methods x seeds) on Dask
+
+    Plan and certify every task of SPEC.toml (scenarios, a grid of overrides, methods, seeds; see
+    docs/sweep.md and 'staghunt schema --sweep') on a Dask cluster: by default a local one with one
+    worker process per core, or the one at --scheduler. Rows go to DIR/results.parquet (a Parquet
+    dataset, one row per task) as tasks finish; tasks already there are skipped, so the same command
+    resumes. Figures: DIR/beta_tradeoff.png and DIR/convergence.png.
+    """
     from staghunt.study.spec import expand, load_spec
     from staghunt.study.sweep import open_stores, pending, run_sweep, warm_engine, warm_workers
 

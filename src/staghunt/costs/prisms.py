@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from staghunt.costs.single import band_threat
 from staghunt.world.geometry import (  # noqa: F401 (re-exported: the cost model's geometry)
     clip_to_band,
     point_segment_distance,
@@ -27,12 +28,7 @@ def prism_threat(dist: np.ndarray, radius: np.ndarray, margin: float, clearance:
     """Threat sums ``(P, N)`` and penetration depths ``(P, N)`` of ``r + c`` from
     :func:`prism_distance` ``(P, N, S, Q)``: per segment and prism ``inf`` strictly inside
     ``r + c``, 0 beyond ``r + Delta``, else ``r + Delta - d``."""
-    r = radius[:, None, None]
-    inner = r + clearance
-    outer = r + margin
-    cost = np.where(dist < inner, np.inf, np.where(dist > outer, 0.0, outer - dist))
-    depth = np.maximum(inner - dist, 0.0)
-    return cost.sum(axis=(-2, -1)), depth.sum(axis=(-2, -1))
+    return band_threat(dist, radius[:, None, None], margin, clearance)
 
 
 def ceiling_cost(abs_path: np.ndarray, ceiling: float) -> tuple[np.ndarray, np.ndarray]:

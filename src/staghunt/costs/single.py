@@ -53,7 +53,16 @@ def threat_cost(
     strictly inside ``R + r + c``, else 0 beyond ``R + r + Delta``, else ``R + r + Delta - d``.
     Returns ``(P, N)`` sums and ``(P, N)`` total penetration depth of ``R + r + c``.
     """
-    body = cylinders[:, 2] + radius[:, None, None]  # (N, 1, T)
+    return band_threat(dist, cylinders[:, 2] + radius[:, None, None], margin, clearance)  # body (N, 1, T)
+
+
+def band_threat(dist: np.ndarray, body: np.ndarray, margin: float, clearance: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The threat of an obstacle ``body`` metres from its axis or footprint, a horizontal
+    distance ``dist`` ``(P, N, S, Q)`` away (``body`` broadcasts to it: ``R + r`` for a cylinder,
+    ``r`` for a prism): per segment and obstacle ``inf`` strictly inside ``body + c``, 0 beyond
+    ``body + Delta``, else ``body + Delta - d``. Returns the ``(P, N)`` sums and the ``(P, N)``
+    total penetration depth of ``body + c``."""
     inner = body + clearance
     outer = body + margin
     cost = np.where(dist < inner, np.inf, np.where(dist > outer, 0.0, outer - dist))

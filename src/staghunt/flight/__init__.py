@@ -2,9 +2,11 @@
 (:mod:`~staghunt.flight.vehicles`), the planner senses the changing site and re-solves the game
 in flight (:mod:`~staghunt.flight.replan`) along a spliced reference
 (:mod:`~staghunt.flight.reference`); :mod:`~staghunt.flight.safety` judges separations and
-clearances at the same instant; :func:`fly` runs an episode (:mod:`~staghunt.flight.loop`)."""
+clearances at the same instant; :func:`check_flight` checks an episode once, :func:`fly` runs it
+(:mod:`~staghunt.flight.loop`)."""
 
-from staghunt.flight.loop import FlightInputError, FlightResult, FlightStatus, fly
+from staghunt.flight.loop import FlightInputError, FlightRequest, FlightResult, FlightStatus, check_flight, fly
 from staghunt.flight.replan import FlyConfig, ReplanRecord
 
-__all__ = ["FlightInputError", "FlightResult", "FlightStatus", "FlyConfig", "ReplanRecord", "fly"]
+__all__ = ["FlightInputError", "FlightRequest", "FlightResult", "FlightStatus", "FlyConfig", "ReplanRecord",
+           "check_flight", "fly"]

@@ -11,20 +11,30 @@ simulated vehicles against the true world at each instant.
 from __future__ import annotations
 
 import math
+import os
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from enum import Enum
 from typing import Any, Callable
 
 import numpy as np
 
+from staghunt.analysis.certify import plan_from_result_data
 from staghunt.api import PlanRequest, check_plan, plan
+from staghunt.checks import check_inside_site
+from staghunt.costs import CostModel
+from staghunt.engine import Engine
 from staghunt.flight.reference import Reference
 from staghunt.flight.known import check_piece, swept_obstacles
 from staghunt.flight.replan import FlyConfig, ReplanRecord, Replanner, offline_plan
 from staghunt.flight.safety import moving_clearance, separations, static_clearance
 from staghunt.flight.vehicles import DrydenGust, SimulatedTeam
-from staghunt.scenario import Scenario
+from staghunt.inputs import check_waypoints
+from staghunt.io.result_json import read_result
+from staghunt.result import PlanResult
+from staghunt.scenario import Scenario, load_scenario
+from staghunt.scenario.dynamics import load_events
 from staghunt.scenario.model import SolverSettings
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
@@ -150,10 +160,12 @@ def _horizontal_distance(shape: Cylinder | Prism, xy: np.ndarray) -> np.ndarray:
 
 
 def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig, engine: Any,
-             rng: np.random.Generator, progress: Callable[[float, float], None] | None = None
+             rng: np.random.Generator, progress: Callable[[float, float], None] | None = None,
+             certify_search: SolverSettings | None = None
              ) -> tuple[dict[str, Any], list[ReplanRecord], int, str, str]:
     """Fly ``ref0`` in closed loop. Returns the sampled flight, the re-plans, the number of
-    stops, the ending (``"arrived"`` / ``"stopped"``) and a message."""
+    stops, the ending (``"arrived"`` / ``"stopped"``) and a message. ``certify_search``: the
+    re-plans' certificate settings, checked (:class:`~staghunt.flight.replan.Replanner`)."""
     replan_rng, noise_rng, wind_rng = rng.spawn(3)
     dt = 1.0 / config.sim_rate
     per_tick = max(1, round(config.sim_rate / dyn.sensing.rate))
@@ -165,7 +177,7 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
         wind = DrydenGust(config.wind * np.array([math.cos(heading), math.sin(heading), 0.0]),
                           mean_alt, dt, wind_rng)
     team = SimulatedTeam(starts, dt, wind)
-    planner = Replanner(scenario, dyn, config, engine, replan_rng)
+    planner = Replanner(scenario, dyn, config, engine, replan_rng, certify_search)
     ref = ref0
     pending = [e for e in dyn.events if e.kind == "appear"]
     stops, stopped_at, retries = 0, -1.0, 0
@@ -321,26 +333,35 @@ def _source(source: Any) -> tuple[Scenario, np.ndarray | None, SolverSettings | 
     """A scenario (object, built-in name or TOML path), a :class:`~staghunt.PlanResult`, or a
     ``result.json`` path -> the scenario, the plan's waypoints (``None``: plan first) and its
     settings."""
-    import os
-
-    from staghunt.result import PlanResult
-    from staghunt.scenario import load_scenario
-
     if isinstance(source, Scenario):
         return source, None, None
     if isinstance(source, PlanResult):
         return source.scenario, np.array(source.waypoints), source.settings
     text = os.fspath(source)
     if text.lower().endswith(".json"):
-        from staghunt.analysis.certify import plan_from_result_data
-        from staghunt.io.result_json import read_result
-
-        scenario, waypoints, settings = plan_from_result_data(read_result(text), text)
-        return scenario, waypoints, settings
+        return plan_from_result_data(read_result(text), text)
     return load_scenario(text), None, None
 
 
-def fly(
+@dataclass(frozen=True, eq=False)
+class FlightRequest:
+    """A flight that :func:`check_flight` has checked: the offline plan's run (``plan``, a
+    :class:`~staghunt.api.PlanRequest` whose scenario carries the flight's changing world), the
+    plan to fly (``waypoints`` ``(N, K, 3)``; ``None``: planned first), the flight settings
+    and the settings of the re-plans' certificate searches. :func:`fly` flies it without
+    checking anything again."""
+
+    plan: PlanRequest
+    waypoints: np.ndarray | None
+    config: FlyConfig
+    certify_search: SolverSettings
+
+    @property
+    def scenario(self) -> Scenario:
+        return self.plan.scenario
+
+
+def check_flight(
     source: Any,
     *,
     waypoints: np.ndarray | None = None,
@@ -348,35 +369,40 @@ def fly(
     seed: int = 0,
     config: FlyConfig | None = None,
     settings: SolverSettings | None = None,
-    engine: str = "auto",
+    budget: Mapping[str, int | None] | None = None,
+    engine: "str | Engine" = "auto",
     threads: int | None = None,
-    progress: Callable[[float, float], None] | None = None,
-) -> FlightResult:
-    """Fly a team in closed loop with re-planning; returns a frozen :class:`FlightResult`.
+    warn: Callable[[str], None] | None = None,
+) -> FlightRequest:
+    """Every check a flight needs, made once, before any plan or simulation: the source (loaded
+    once), the plan to fly, the events, the flight settings (:meth:`FlyConfig.check`), the
+    offline plan's run (:func:`staghunt.api.check_plan`: seed, settings, engine, memory) and the
+    re-plans' certificate (:meth:`FlyConfig.certify_search`).
 
     ``source``: a :class:`Scenario`, a built-in name or TOML path (planned first with the
     default method at ``settings``, default the scenario's), a :class:`~staghunt.PlanResult` or
     a ``result.json`` path (its plan is flown). ``waypoints``: ``(N, K, 3)`` ``(x, y, h)`` to fly
-    instead of the source's plan. ``events``: a path to an events file (added to
-    the scenario's changing world) or a :class:`~staghunt.world.dynamic.Dynamics` (replacing
-    it); default the scenario's own. The plan is first made sound against the known motions
-    (:func:`~staghunt.flight.replan.offline_plan`). ``seed``: one generator seeds the offline
-    plan, the re-plans, the sensor noise and the wind, so the same inputs and seed give the
-    same flight. Raises ``ValueError`` (a :class:`~staghunt.scenario.ScenarioError`, a
-    :class:`~staghunt.api.PlanRequestError` for the seed, settings or engine, checked once by
-    :func:`~staghunt.api.check_plan`, or a :class:`FlightInputError`; one line naming what is
-    at fault) for inputs that cannot be flown, before any simulation."""
-    from staghunt.scenario.dynamics import load_events
+    instead of the source's plan. ``events``: a path to an events file (added to the scenario's
+    changing world) or a :class:`~staghunt.world.dynamic.Dynamics` (replacing it); default the
+    scenario's own. ``seed``: one generator seeds the offline plan, the re-plans, the sensor
+    noise and the wind, so the same inputs and seed give the same flight. ``budget``:
+    ``particles``, ``iterations``, ``waypoints``, ``starts`` replacing those of the plan's
+    settings (``None`` values: kept). ``engine``, ``threads``: those of :func:`staghunt.plan`.
+    ``warn`` receives the memory warning.
 
+    Returns the :class:`FlightRequest`; raises ``ValueError`` (a
+    :class:`~staghunt.scenario.ScenarioError`, a :class:`~staghunt.errors.FieldError` naming the
+    argument at fault, or a :class:`FlightInputError`), one line."""
     config = config or FlyConfig()
     config.check()
     scenario, source_waypoints, plan_settings = _source(source)
-    if waypoints is None:
-        waypoints = source_waypoints
-    else:
-        from staghunt.checks import check_waypoints
-
+    if waypoints is not None:
         waypoints = check_waypoints(waypoints, scenario.n_uavs)
+    elif source_waypoints is not None:
+        waypoints = source_waypoints
+    if waypoints is not None:
+        check_inside_site(CostModel.from_scenario(scenario), waypoints, [u.name for u in scenario.team],
+                          os.fspath(source) if isinstance(source, (str, os.PathLike)) else None)
     if events is None:
         dyn = scenario.dynamics
     elif isinstance(events, Dynamics):
@@ -384,18 +410,41 @@ def fly(
     else:
         dyn = load_events(events, scenario)
     scenario = replace(scenario, dynamics=dyn)
-    request = check_plan(scenario, "game", seed, settings or plan_settings or scenario.solver, engine, threads)
-    resolved = request.engine
+    settings = (settings or plan_settings or scenario.solver).with_(**(budget or {}))
+    request = check_plan(scenario, "game", seed, settings, engine, threads, warn=warn)
+    return FlightRequest(request, waypoints, config, config.certify_search(scenario))
+
+
+def fly(source: Any, *, progress: Callable[[float, float], None] | None = None, **options: Any) -> FlightResult:
+    """Fly a team in closed loop with re-planning; returns a frozen :class:`FlightResult`.
+
+    ``source`` and ``options``: the arguments of :func:`check_flight` (``waypoints``,
+    ``events``, ``seed``, ``config``, ``settings``, ``budget``, ``engine``, ``threads``), which
+    checks them first; or a :class:`FlightRequest` it returned, flown as checked (no
+    ``options``). The plan is first made sound against the known motions
+    (:func:`~staghunt.flight.replan.offline_plan`), then flown; ``progress(t, t_end)`` follows
+    the simulated time. Raises ``ValueError`` (see :func:`check_flight`; one line naming what
+    is at fault) for inputs that cannot be flown, before any simulation."""
+    if isinstance(source, FlightRequest):
+        if options:
+            raise TypeError(f"a checked FlightRequest is flown as it is; got options {sorted(options)}")
+        request = source
+    else:
+        request = check_flight(source, **options)
+    scenario, config, seed = request.scenario, request.config, request.plan.seed
+    dyn = scenario.dynamics
+    waypoints = request.waypoints
+    resolved = request.plan.engine
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
     wall0 = time.perf_counter()
     rng = np.random.default_rng(seed)
 
     planned_here = waypoints is None
-    wp, ref0, windows = plan_around(request, dyn, waypoints, config)
+    wp, ref0, windows = plan_around(request.plan, dyn, waypoints, config)
     check_events_against_plan(scenario, dyn, ref0)
     flight, replans, stops, ending, message = simulate(scenario, dyn, ref0, config, resolved,
-                                                       rng.spawn(1)[0], progress)
+                                                       rng.spawn(1)[0], progress, request.certify_search)
     m = judge(scenario, dyn, flight)
     r = np.array([u.radius for u in scenario.team])
     limit = scenario.costs.safe_distance + 2 * r

@@ -53,7 +53,7 @@ from staghunt.flight.known import (
 )
 from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
 from staghunt.flight.safety import static_clearance
-from staghunt.scenario import Scenario
+from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.game import best_response_rounds
 from staghunt.solvers.response import CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.world import Cylinder, Prism
@@ -168,6 +168,18 @@ class FlyConfig:
             if not ok:
                 raise ValueError(f"flight setting {name} must be {what}, got {getattr(self, name)!r}")
 
+    def certify_options(self) -> CertifyOptions:
+        """The re-plans' certificate: its budget and tolerance."""
+        return CertifyOptions(self.certify_particles, self.certify_iterations, self.epsilon)
+
+    def certify_search(self, scenario: Scenario) -> SolverSettings:
+        """The settings of the re-plans' certificate searches in ``scenario`` (its solver's, with
+        the certificate's budget), checked (:func:`~staghunt.solvers.response.check_search`): once
+        per flight, before it starts. Raises a :class:`~staghunt.errors.FieldError`."""
+        search = check_search(scenario.solver, self.certify_options(), "re-plan settings")
+        assert search is not None
+        return search
+
 
 @dataclass(frozen=True)
 class ReplanRecord:
@@ -256,8 +268,11 @@ class Replanner:
     only the measured latency and the evaluations spent differ)."""
 
     def __init__(self, scenario: Scenario, dyn: Dynamics, config: FlyConfig, engine: Engine,
-                 rng: np.random.Generator) -> None:
+                 rng: np.random.Generator, search: SolverSettings | None = None) -> None:
+        """``search``: the certificate searches' settings as :meth:`FlyConfig.certify_search`
+        checked them before the flight (``None``: checked here)."""
         self.scenario, self.dyn, self.config, self.engine, self.rng = scenario, dyn, config, engine, rng
+        self.search = search if search is not None else config.certify_search(scenario)
         self.known = KnownWorld(scenario)
         self.records: list[ReplanRecord] = []
         self._runner, self._workers = side_by_side(engine)
@@ -352,7 +367,7 @@ class Replanner:
                                   spent, tries, problems=tuple(chosen.problems[:5]), windows=tuple(used),
                                   state_error_m=error)
             return new_ref, self._keep(record)
-        new_ref, cert, more = self._certified(chosen.ref, chosen.out.plan, chosen.sub, settings, splice,
+        new_ref, cert, more = self._certified(chosen.ref, chosen.out.plan, chosen.sub, splice,
                                               chosen.azimuth)
         record = ReplanRecord(
             t_now, t_s, trigger, status, time.perf_counter() - wall0, budget_s, spent + more, tries,
@@ -360,7 +375,7 @@ class Replanner:
             tuple(used), error)
         return new_ref, self._keep(record)
 
-    def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario, settings: Any,
+    def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario,
                    splice: tuple[Reference, float, float, np.ndarray | None], azimuth: float
                    ) -> tuple[Reference, Any, int]:
         """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
@@ -380,13 +395,12 @@ class Replanner:
         model = CostModel.from_scenario(sub)
         judge = self._solo.evaluate  # the compiled twin of the reference (the same verdicts)
         base, t0, max_stretch, lead = splice
-        options = CertifyOptions(cfg.certify_particles, cfg.certify_iterations, cfg.epsilon)
-        search = check_search(settings, options, "re-plan settings")  # once for every round
+        options = cfg.certify_options()
         best: tuple[Reference, Any] | None = None
         spent = 0
         carried: dict[int, Any] = {}
         for round_ in range(cfg.certify_rounds + 1):
-            request = CertifyRequest.of_checked(sub, plan, search, options, int(self.rng.integers(2**31)))
+            request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))
             cert = certify_plan(request, runner=self._runner, azimuth=azimuth, workers=self._workers,
                                 carried=carried, tail_runner=self.engine.run_swarm if self._workers > 1 else None)
             spent += sum(u.evaluations for u in cert.uavs)

@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from staghunt.budget import check_memory, estimate_evaluate
-from staghunt.checks import check_waypoints, outside_site, violations
+from staghunt.checks import outside_site, violations
 from staghunt.costs import CostModel, evaluate
 from staghunt.io.result_json import (
     INFINITY_NOTE,
@@ -43,7 +43,7 @@ from staghunt.io.result_json import (
     terms_dict,
     weighted_terms,
 )
-from staghunt.inputs import MAX_MAGNITUDE, show
+from staghunt.inputs import MAX_MAGNITUDE, check_waypoints, show
 from staghunt.scenario.model import Scenario
 
 TOP_KEYS = ("uavs",)

@@ -80,24 +80,37 @@ def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: s
             shape = (nofly_zone(poly, name) if e.height is None
                      else make_prism(poly, e.base or 0.0, e.height, world.terrain, name))
         events.append(Event(e.time, "appear", name, shape))
-    names = [m.name for m in moving] + [j.name for j in jibs] + [e.name for e in events if e.kind == "appear"]
-    seen: set[str] = set()
-    for n in names:
-        if n in seen:
-            raise ScenarioError(f"the name {n!r} is given to two changing obstacles", f"{prefix}events")
-        seen.add(n)
     sensing = Sensing(**f.sensing.model_dump()) if f.sensing is not None else Sensing()
     dyn = Dynamics(tuple(moving), tuple(jibs), tuple(sorted(events, key=lambda e: e.time)), sensing)
     return dyn, f.sensing is not None
 
 
-def check_disappearing(dyn: Dynamics, world: World, key: str = "events") -> None:
-    """Every ``disappear`` event names an obstacle of the site or of the changing world."""
-    known = {c.name for c in world.cylinders} | {p.name for p in world.prisms}
-    known |= {m.name for m in dyn.moving} | {j.name for j in dyn.jibs}
-    known |= {e.name for e in dyn.events if e.kind == "appear"}
+def check_names(dyn: Dynamics, world: World, key: str = "events") -> None:
+    """The names that tie the changing world together, checked once it is whole (a scenario's
+    own, or merged with an events file's): every changing obstacle has a name of its own,
+    none of a static obstacle of the site (a ``disappear`` could not tell them apart), and every
+    ``disappear`` names an obstacle that is there by then (of the site, or one that appeared
+    before). ``dyn.events`` are in time order."""
+    static = {c.name for c in world.cylinders} | {p.name for p in world.prisms}
+    changing = [m.name for m in dyn.moving] + [j.name for j in dyn.jibs]
+    changing += [e.name for e in dyn.events if e.kind == "appear"]
+    seen: set[str] = set()
+    for n in changing:
+        if n in seen:
+            raise ScenarioError(f"the name {n!r} is given to two changing obstacles", key)
+        if n in static:
+            raise ScenarioError(f"the name {n!r} is given to a changing obstacle and to an obstacle of the "
+                                "site; give them different names", key)
+        seen.add(n)
+    there = static | {m.name for m in dyn.moving} | {j.name for j in dyn.jibs}
+    appears = {e.name: e.time for e in dyn.events if e.kind == "appear"}
     for i, e in enumerate(dyn.events):
-        if e.kind == "disappear" and e.name not in known:
+        if e.kind == "appear":
+            there.add(e.name)
+        elif e.name in appears and e.name not in there:
+            raise ScenarioError(f"{e.name!r} disappears at t = {fmt(e.time)} s, before it appears at "
+                                f"t = {fmt(appears[e.name])} s", f"{key}[{i}].time")
+        elif e.name not in there:
             raise ScenarioError(f"no obstacle called {e.name!r} to disappear", f"{key}[{i}].name")
 
 
@@ -117,11 +130,7 @@ def load_events(path: str | os.PathLike[str], scenario: "Scenario") -> Dynamics:
         first = 1 + sum(1 for e in own.events if e.kind == "appear")
         extra, sensing_given = dynamics_from_tables(f, scenario.world, first_popup=first)
         dyn = own.merged(extra, sensing_given)
-        check_disappearing(dyn, scenario.world)
-        names = [m.name for m in dyn.moving] + [j.name for j in dyn.jibs]
-        names += [e.name for e in dyn.events if e.kind == "appear"]
-        if len(names) != len(set(names)):
-            raise ScenarioError("a changing obstacle of the events file has the name of one of the scenario's")
+        check_names(dyn, scenario.world)
     except ScenarioError as exc:
         raise ScenarioError(exc.detail, exc.key, source) from None
     except ValueError as exc:

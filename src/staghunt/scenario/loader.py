@@ -401,10 +401,10 @@ def scenario_from_dict(
         team = _team(f.team)
         _check_team_in_world(team, world, costs)
         formation = _formation(f.formation, team, terrain)
-    from staghunt.scenario.dynamics import check_disappearing, dynamics_from_tables
+    from staghunt.scenario.dynamics import check_names, dynamics_from_tables
 
     dynamics, _ = dynamics_from_tables(f, world)
-    check_disappearing(dynamics, world)
+    check_names(dynamics, world)
     return Scenario(
         name=scenario_name,
         description=f.description,

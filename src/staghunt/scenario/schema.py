@@ -133,23 +133,33 @@ Polygon = Annotated[
 ]
 
 
-class PrismTable(_Table):
+BaseHeight = Annotated[float, Field(ge=0, description="m above ground; 0 = from the ground")]
+TopHeight = Annotated[float, Field(gt=0, description="top, m above ground")]
+
+
+class _Solid(_Table):
+    """A table of a solid from ``base`` up to ``height`` (fields of its subclass, in their own
+    order): the top must lie above the base."""
+
+    @model_validator(mode="after")
+    def _top_above_base(self) -> "_Solid":
+        base, height = self.base, self.height  # type: ignore[attr-defined]  # the subclass's fields
+        if height <= base:
+            raise _fail("height", f"must be above base = {_fmt(base)}, got {_fmt(height)}")
+        return self
+
+
+class PrismTable(_Solid):
     """A vertical prism (building, crane tower, site cabin): a footprint polygon from ``base``
     to ``height``, both in metres above the ground (docs/model.md, "Prisms")."""
 
     name: str = ""
     polygon: Polygon
-    base: Annotated[float, Field(ge=0, description="m above ground; 0 = from the ground")] = 0.0
-    height: Annotated[float, Field(gt=0, description="top, m above ground")]
-
-    @model_validator(mode="after")
-    def _order(self) -> "PrismTable":
-        if self.height <= self.base:
-            raise _fail("height", f"must be above base = {_fmt(self.base)}, got {_fmt(self.height)}")
-        return self
+    base: BaseHeight = 0.0
+    height: TopHeight
 
 
-class BoxTable(_Table):
+class BoxTable(_Solid):
     """An axis-aligned box: x in [xmin, xmax], y in [ymin, ymax], from ``base`` to ``height`` m above ground."""
 
     name: str = ""
@@ -157,16 +167,14 @@ class BoxTable(_Table):
     xmax: Number
     ymin: Number
     ymax: Number
-    base: Annotated[float, Field(ge=0, description="m above ground; 0 = from the ground")] = 0.0
-    height: Annotated[float, Field(gt=0, description="top, m above ground")]
+    base: BaseHeight = 0.0
+    height: TopHeight
 
     @model_validator(mode="after")
     def _order(self) -> "BoxTable":
         for lo, hi in (("xmin", "xmax"), ("ymin", "ymax")):
             if getattr(self, lo) >= getattr(self, hi):
                 raise _fail(hi, f"must be greater than {lo} = {_fmt(getattr(self, lo))}, got {_fmt(getattr(self, hi))}")
-        if self.height <= self.base:
-            raise _fail("height", f"must be above base = {_fmt(self.base)}, got {_fmt(self.height)}")
         return self
 
 
@@ -320,7 +328,7 @@ class MovingTable(_Table):
     repeat: RepeatKind = Field("stop", description="at the end: 'stop' there, or run the path back and forth ('reverse')")
 
 
-class JibTable(_Table):
+class JibTable(_Solid):
     """A crane jib that slews: a box ``length`` m ahead of the pivot (plus ``counter`` behind),
     ``width`` m wide, from ``base`` to ``height`` m above the ground at the pivot, turning from
     ``angle_from`` to ``angle_to`` (degrees counter-clockwise from east) at ``rate`` deg/s."""
@@ -337,12 +345,6 @@ class JibTable(_Table):
     rate: Annotated[float, Field(gt=0, le=90, description="deg/s")]
     start_time: Seconds = 0.0
     repeat: RepeatKind = "stop"
-
-    @model_validator(mode="after")
-    def _order(self) -> "JibTable":
-        if self.height <= self.base:
-            raise _fail("height", f"must be above base = {_fmt(self.base)}, got {_fmt(self.height)}")
-        return self
 
 
 class EventTable(_Table):

@@ -52,6 +52,7 @@ import numpy as np
 
 from staghunt.costs import CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, decode, encode
+from staghunt.inputs import check_waypoints
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
 from staghunt.solvers.base import RequestError, check_seed
 from staghunt.solvers.problem import solo_problem
@@ -140,16 +141,12 @@ class CertifyRequest:
 def check_certify(scenario: Scenario, waypoints: np.ndarray, options: CertifyOptions | None = None,
                   seed: int = 0, settings: SolverSettings | None = None,
                   what: str = "certificate settings") -> CertifyRequest:
-    """Every check a certificate needs, made once: the plan's shape, the seed, the settings
+    """Every check a certificate needs, made once: the plan (a finite ``(N, K, 3)`` array of
+    moderate magnitude, :func:`staghunt.inputs.check_waypoints`), the seed, the settings
     (default: the scenario's) and the budget (:func:`check_search`). Returns the
-    :class:`CertifyRequest`; raises :class:`RequestError` (``field``: ``waypoints``, ``seed``,
-    ``settings`` or ``certify``) with one line."""
-    wp = np.asarray(waypoints, dtype=float)
-    if wp.ndim != 3 or wp.shape[0] != scenario.n_uavs or wp.shape[2] != 3 or wp.shape[1] < 1:
-        raise RequestError(f"waypoints must have shape (N, K, 3) with N = {scenario.n_uavs} UAVs and "
-                           f"K >= 1, got {wp.shape}", "waypoints")
-    if not np.all(np.isfinite(wp)):
-        raise RequestError("waypoints must be finite numbers", "waypoints")
+    :class:`CertifyRequest`; raises a :class:`~staghunt.errors.FieldError` (``field``:
+    ``waypoints``, ``seed``, ``settings`` or ``certify``) with one line."""
+    wp = check_waypoints(waypoints, scenario.n_uavs)
     options = options if options is not None else CertifyOptions()
     search = check_search(settings if settings is not None else scenario.solver, options, what)
     assert search is not None
@@ -247,14 +244,8 @@ class Certificate:
 
 
 def certify_plan(
-    scenario: "Scenario | CertifyRequest",
-    waypoints: np.ndarray | None = None,
+    request: CertifyRequest,
     *,
-    particles: int = DEFAULT_PARTICLES,
-    iterations: int = DEFAULT_ITERATIONS,
-    seed: int = 0,
-    epsilon: float = DEFAULT_EPSILON,
-    settings: SolverSettings | None = None,
     progress: Callable[[int, int, int, int], None] | None = None,
     runner: SwarmRunner = run_swarm,
     azimuth: float = ANGLE_RANGE,
@@ -262,15 +253,10 @@ def certify_plan(
     carried: Mapping[int, UAVGap] | None = None,
     tail_runner: SwarmRunner | None = None,
 ) -> Certificate:
-    """Nash gaps of the team plan ``waypoints`` ``(N, K, 3)`` (``(x, y, h)``) in ``scenario``.
+    """Nash gaps of the team plan of ``request`` (:func:`check_certify`, run as checked): each
+    UAV's search with the request's budget, seed and swarm parameters (``c0``, ``damping``,
+    ``c1``, ``c2``, ``velocity_fraction`` of its settings), the verdict with its ``epsilon``.
 
-    ``scenario``: a :class:`Scenario` (the plan and budget are then checked here with
-    :func:`check_certify`), or a :class:`CertifyRequest` from :func:`check_certify`, run as
-    checked (``waypoints``, ``particles``, ``iterations``, ``seed``, ``epsilon`` and
-    ``settings`` are then taken from it, not from the arguments).
-    ``particles``/``iterations``: budget of each UAV's search; the other swarm parameters
-    (``c0``, ``damping``, ``c1``, ``c2``, ``velocity_fraction``) come from ``settings``
-    (default: the scenario's). ``epsilon``: relative tolerance of the verdict.
     ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
     ``runner``: what runs the searches (an engine's ``run_swarm``); the plan's costs are always
     evaluated with the NumPy reference. ``azimuth``: half-width of the deviations' heading
@@ -285,15 +271,11 @@ def certify_plan(
     problem (the others' paths) is the one that search fixed, and the UAV now flies a path of
     its own. Its search is not run again: its best deviation is compared with the plan's cost
     (the UAV flies that search's best reply after a certificate round: gap 0), and a note says
-    so. Raises :class:`RequestError` (a ``ValueError``) for unusable inputs, including
-    settings that disable the search (no velocity, no attraction): those cannot certify.
+    so.
+
+    On an engine of choice, with the plan's site and memory checked too:
+    :func:`staghunt.analysis.certify.certify_on_engine`.
     """
-    if isinstance(scenario, CertifyRequest):
-        request = scenario
-    else:
-        if waypoints is None:
-            raise RequestError("waypoints: a plan to certify is needed", "waypoints")
-        request = check_certify(scenario, waypoints, CertifyOptions(particles, iterations, epsilon), seed, settings)
     scenario, wp, run_settings = request.scenario, request.waypoints, request.settings
     seed, epsilon = request.seed, request.options.epsilon
     particles, iterations = request.options.particles, request.options.iterations

@@ -176,11 +176,17 @@ class DaskExecutor(Generic[T, R]):
         self.close()
 
 
+def runs_here(address: str | None = None, workers: int | None = None) -> bool:
+    """Whether :func:`make_executor` with these arguments runs the tasks in this process (one
+    worker, no scheduler), known before any cluster starts."""
+    return address is None and workers == 1
+
+
 def make_executor(address: str | None = None, workers: int | None = None,
                   connect_timeout: float = DEFAULT_CONNECT_TIMEOUT_S) -> "InlineExecutor | DaskExecutor[Any, Any]":
-    """``workers == 1`` without ``address``: :class:`InlineExecutor`; otherwise a
-    :class:`DaskExecutor` (a local cluster, or the scheduler at ``address``)."""
-    if address is None and workers == 1:
+    """An :class:`InlineExecutor` when :func:`runs_here`; otherwise a :class:`DaskExecutor` (a
+    local cluster, or the scheduler at ``address``)."""
+    if runs_here(address, workers):
         return InlineExecutor()
     return DaskExecutor(address, workers, connect_timeout)
 

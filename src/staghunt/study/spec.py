@@ -45,9 +45,15 @@ from typing import Annotated, Any, Literal, Optional
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from staghunt._version import __version__
+from staghunt.api import check_plan
 from staghunt.errors import FieldError
 from staghunt.inputs import parse_seeds as read_seeds
+from staghunt.inputs import parse_toml, read_text
+from staghunt.io.result_json import settings_to_dict
+from staghunt.scenario import builtin_names, builtin_path, load_scenario, scenario_from_dict, scenario_to_dict
 from staghunt.scenario.errors import ScenarioError
+from staghunt.scenario.validation import plain, validate
 from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, CertifyOptions
 from staghunt.study.tasks import PlanTask
 
@@ -140,9 +146,6 @@ class Sweep:
 def load_spec(path: str | os.PathLike[str]) -> tuple[SweepFile, Path]:
     """Read and check the spec at ``path``; returns it and the directory relative paths are
     resolved against. Raises :class:`SpecError` (``PATH: key: detail``)."""
-    from staghunt.inputs import parse_toml, read_text
-    from staghunt.scenario.validation import plain, validate
-
     source = os.fspath(path)
     try:
         data = parse_toml(read_text(source, "sweep spec (TOML)"), source)
@@ -157,8 +160,6 @@ def task_key(scenario_data: dict[str, Any], method: str, seed: int, settings: di
              certify: CertifyOptions, engine: str) -> str:
     """sha256 (hex) of a task's full configuration: the scenario after overrides (plain data),
     method, seed, solver settings, certificate budget, engine and package version."""
-    from staghunt._version import __version__
-
     doc = {"scenario": scenario_data, "method": method, "seed": int(seed), "settings": settings,
            "certify": {"particles": certify.particles, "iterations": certify.iterations,
                        "epsilon": certify.epsilon}, "engine": engine, "version": __version__}
@@ -215,27 +216,21 @@ def _describe(scenario: str, overrides: dict[str, Any]) -> str:
     return f"scenario {scenario!r}" + (f" with {', '.join(parts)}" if parts else "")
 
 
+_SPEC_KEYS = {"method": "methods[{}]", "certify": "certificate"}
+"""The key of the spec at fault of a run's refusal (:func:`staghunt.api.check_plan`'s field);
+other refusals name the task."""
+
+
 def expand(spec: SweepFile, base_dir: Path | None = None) -> Sweep:
     """Every task of ``spec``, checked: scenarios loaded, overrides applied through the
     scenario's validation, every run checked (:func:`staghunt.api.check_plan`, memory included).
     Raises :class:`SpecError` naming the scenario, override or method at fault."""
-    from staghunt.api import check_plan
-    from staghunt.io.result_json import settings_to_dict
-    from staghunt.scenario import builtin_names, builtin_path, load_scenario, scenario_from_dict, scenario_to_dict
-    from staghunt.solvers import METHODS
-
     base_dir = base_dir if base_dir is not None else Path(".")
-    for i, m in enumerate(spec.methods):
-        if m not in METHODS:
-            raise SpecError(f"methods[{i}]: unknown method {m!r}; choose from {', '.join(METHODS)}")
     if len(set(spec.methods)) != len(spec.methods):
         raise SpecError("methods: a method is listed twice")
     seeds = parse_seeds(spec.seeds) if isinstance(spec.seeds, str) else tuple(dict.fromkeys(spec.seeds))
+    # The certificate's table and every method are checked with each run (check_plan, below).
     cert = CertifyOptions(spec.certificate.particles, spec.certificate.iterations, float(spec.certificate.epsilon))
-    try:
-        cert.check()
-    except ValueError as exc:
-        raise SpecError(f"certificate: {exc}") from None
     axes = _axes(spec.grid)
     top = {k: getattr(spec, k) for k in ("particles", "iterations", "waypoints") if getattr(spec, k) is not None}
     tasks: list[PlanTask] = []
@@ -267,11 +262,13 @@ def expand(spec: SweepFile, base_dir: Path | None = None) -> Sweep:
             settings = variant.solver
             settings_data = settings_to_dict(settings)
             requests = {}
-            for method in spec.methods:
+            for m, method in enumerate(spec.methods):
                 try:
                     requests[method] = check_plan(variant, method, seeds[0], settings, spec.engine, 1, cert)
                 except ValueError as exc:
-                    raise SpecError(f"{what}, method {method!r}: {' '.join(str(exc).split())}") from None
+                    field = getattr(exc, "field", None)
+                    where = _SPEC_KEYS.get(field, f"{what}, method {method!r}").format(m)
+                    raise SpecError(f"{where}: {' '.join(str(exc).split())}") from None
             for seed in seeds:  # seed-major: the first results already span the methods
                 for method in spec.methods:
                     key = task_key(variant_data, method, seed, settings_data, cert, spec.engine)

@@ -1,6 +1,7 @@
 """Method comparison: every method on every seed, scored with the same ``J_n``.
 
-:func:`run_compare` plans ``scenario`` with each method and seed (seed-major: all methods of
+:func:`check_compare` checks every run of a comparison once, before any work; :func:`run_compare`
+then plans the scenario with each method and seed (seed-major: all methods of
 seed 1, then seed 2, ...), certifies every plan (:mod:`staghunt.analysis.certify`) and keeps
 everything on disk as it goes, so a long run can be interrupted and resumed:
 
@@ -22,8 +23,8 @@ dominance with the feasibility-first rule).
 ``compare.json`` holds the same runs plus the summary per method and UAV, the dominance verdict
 of each seed, the Nash gaps and the paper's Fig. 8 block (:mod:`staghunt.analysis.paper`).
 
-Modules: :mod:`.model` (options, records, report, parsing of seeds and methods), :mod:`.runner`
-(running and resuming), :mod:`.stats` (statistics and dominance), :mod:`.formats` (JSON, CSV,
+Modules: :mod:`.model` (the request, records, report, parsing of seeds and methods),
+:mod:`.runner` (checking, running and resuming), :mod:`.stats` (statistics and dominance), :mod:`.formats` (JSON, CSV,
 text). Figures: :mod:`staghunt.plots.compare`.
 """
 
@@ -35,18 +36,20 @@ from staghunt.analysis.compare.model import (
     CertifyOptions,
     CompareListener,
     CompareReport,
+    CompareRequest,
     RunRecord,
     certificate_file,
     parse_methods,
     parse_seeds,
     run_file,
 )
-from staghunt.analysis.compare.runner import record_from_files, run_compare
+from staghunt.analysis.compare.runner import check_compare, record_from_files, run_compare
 from staghunt.analysis.compare.stats import best_seed, dominance_table, summarize
 
 __all__ = [
     "COMPARE_FORMAT", "CSV_COLUMNS", "DEFAULT_METHODS", "REFERENCE_METHOD", "CertifyOptions",
-    "CompareListener", "CompareReport", "RunRecord", "aggregate", "best_seed", "certificate_file",
+    "CompareListener", "CompareReport", "CompareRequest", "RunRecord", "aggregate", "best_seed",
+    "certificate_file", "check_compare",
     "csv_text", "dominance_table", "format_report", "parse_methods", "parse_seeds",
     "record_from_files", "run_compare", "run_file", "summarize",
 ]

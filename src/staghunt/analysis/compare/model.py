@@ -1,5 +1,5 @@
-"""The comparison's data: its options, one finished run (:class:`RunRecord`), the report, the
-progress hooks; parsing ``--seeds`` and ``--methods``; where runs are stored; the JSON encoding of
+"""The comparison's data: the checked request (:class:`CompareRequest`), one finished run
+(:class:`RunRecord`), the report, the progress hooks; parsing seed and method lists; where runs are stored; the JSON encoding of
 non-finite numbers (``"inf"``, ``"-inf"``, ``null`` for NaN)."""
 
 from __future__ import annotations
@@ -8,19 +8,37 @@ import json
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
+from staghunt.api import PlanRequest
 from staghunt.checks import Metrics
 from staghunt.errors import FieldError
-from staghunt.inputs import parse_seeds  # noqa: F401  (re-exported: compare's --seeds)
+from staghunt.inputs import parse_seeds  # noqa: F401  (re-exported: compare's seed lists)
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.response import CertifyOptions
 
 COMPARE_FORMAT = "staghunt-compare/1"
 DEFAULT_METHODS = ("game", "paper", "rigid", "independent", "weighted")
 REFERENCE_METHOD = "game"
+
+
+@dataclass(frozen=True, eq=False)
+class CompareRequest:
+    """A comparison that :func:`~staghunt.analysis.compare.check_compare` has checked: the
+    scenario, the methods and seeds (each once, in order), the budget and certificate options
+    every run shares, and every run's checked :class:`~staghunt.api.PlanRequest`
+    (``runs[(method, seed)]``). :func:`~staghunt.analysis.compare.run_compare` runs it without
+    checking anything again."""
+
+    scenario: Scenario
+    methods: tuple[str, ...]
+    seeds: tuple[int, ...]
+    settings: SolverSettings
+    certify: CertifyOptions | None
+    runs: Mapping[tuple[str, int], PlanRequest]
+
 
 @dataclass(frozen=True, eq=False)
 class RunRecord:
@@ -133,19 +151,13 @@ def _json_normal(obj: Any) -> Any:
 
 
 def parse_methods(text: str) -> tuple[str, ...]:
-    """``"game,rigid"`` -> methods in order; each must be registered (``ValueError`` otherwise)."""
-    from staghunt.solvers import METHODS
-
-    names = [m.strip() for m in text.split(",") if m.strip()]
+    """``"game,rigid"`` -> method names in order, duplicates dropped (:class:`FieldError` for an
+    empty list). Whether each is a method is checked with the rest of its run
+    (:func:`~staghunt.analysis.compare.check_compare`)."""
+    names = tuple(dict.fromkeys(m.strip() for m in text.split(",") if m.strip()))
     if not names:
         raise FieldError("methods: expected a comma-separated list of methods, got an empty value", "methods")
-    out: list[str] = []
-    for m in names:
-        if m not in METHODS:
-            raise FieldError(f"methods: unknown method {m!r}; choose one of {', '.join(sorted(METHODS))}", "methods")
-        if m not in out:
-            out.append(m)
-    return tuple(out)
+    return names
 
 
 def run_file(out_dir: Path, method: str, seed: int) -> Path:

@@ -1,33 +1,43 @@
-"""Running and resuming a comparison: plan and certify every (method, seed) run, each stored on
-disk as soon as it ends; a run already on disk is read back instead (after checking that it was
-made with the same scenario, settings and certificate budget)."""
+"""Checking, running and resuming a comparison: every (method, seed) run checked once before any
+work (:func:`check_compare`), then planned and certified, each stored on disk as soon as it ends;
+a run already on disk is read back instead (after checking that it was made with the same
+scenario, settings and certificate budget)."""
 
 from __future__ import annotations
 
 import math
 import os
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from staghunt.analysis.certify import plan_from_result_data
 from staghunt.analysis.compare.formats import aggregate, csv_text
 from staghunt.analysis.compare.model import (
     DEFAULT_METHODS,
     CertifyOptions,
     CompareListener,
     CompareReport,
+    CompareRequest,
     RunRecord,
     _decode,
     _json_normal,
     certificate_file,
     run_file,
 )
+from staghunt.api import PlanRequest, check_plan
 from staghunt.checks import plan_metrics
 from staghunt.costs import CostModel, evaluate
+from staghunt.engine import Engine
 from staghunt.errors import FieldError
 from staghunt.io.atomic import write_text_atomic
+from staghunt.io.certificate import certificate_to_dict
+from staghunt.io.result_json import load_json_strict, read_result, settings_to_dict, write_json_atomic, write_result
+from staghunt.scenario import scenario_to_dict
 from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.study.executor import InlineExecutor, TaskFailure, run_tasks
+from staghunt.study.tasks import PlanTask, TaskOutcome, run_plan_task
 
 DEFAULT_CERTIFY = CertifyOptions()
 """The certificate of every run unless told otherwise (frozen: one shared default is safe)."""
@@ -37,9 +47,6 @@ def record_from_files(
     scenario: Scenario, model: CostModel, result_path: Path, cert_path: Path | None
 ) -> RunRecord:
     """Rebuild a :class:`RunRecord` from a run's ``result.json`` (and certificate file)."""
-    from staghunt.analysis.certify import plan_from_result_data
-    from staghunt.io.result_json import load_json_strict, read_result
-
     data = read_result(result_path)
     _, wp, _ = plan_from_result_data(data, str(result_path))
     costs = evaluate(model, wp[None])
@@ -92,57 +99,68 @@ def _check_stored_certificate(data: Any, path: Path, opts: CertifyOptions, seed:
 # ------------------------------------------------------------------------------------------------
 
 
-def run_compare(
+def check_compare(
     scenario: Scenario,
-    out_dir: str | os.PathLike[str],
-    *,
     methods: Sequence[str] = DEFAULT_METHODS,
     seeds: Sequence[int] = tuple(range(1, 11)),
     settings: SolverSettings | None = None,
     certify: CertifyOptions | None = DEFAULT_CERTIFY,
-    listener: CompareListener | None = None,
-    plan_options: dict[str, Any] | None = None,
-    executor: Any = None,
-) -> CompareReport:
-    """Plan ``scenario`` with every method and seed, certify each plan, and aggregate.
+    *,
+    engine: "str | Engine" = "auto",
+    threads: int | None = None,
+    warn: Callable[[str], None] | None = None,
+) -> CompareRequest:
+    """Every check a comparison needs, made once, before any run: at least one method and one
+    seed, none repeated, and every run (:func:`staghunt.api.check_plan` per method: the method,
+    the settings, the certificate's options, the engine and the memory; then each seed with
+    :meth:`~staghunt.api.PlanRequest.with_seed`).
 
     ``settings``: the budget of every method (default: the scenario's). ``certify``: the
-    certificate's budget and tolerance, ``None`` to skip certificates. ``plan_options``: the
-    ``engine`` and ``threads`` of :func:`staghunt.plan`, which also run the certificates'
-    searches. ``executor``: where the runs go (:mod:`staghunt.study.executor`; default: in this
-    process, one after the other): every run is one task of
-    :func:`staghunt.study.tasks.run_plan_task`, the task function of ``staghunt sweep``. Files go
-    to ``out_dir`` (see the module docstring) as each run completes; runs are reported to
-    ``listener`` and aggregated in (seed, method) order. A ``KeyboardInterrupt`` leaves every
-    finished run on disk and the aggregate files consistent with them. Raises ``ValueError``
-    for bad input.
-    """
-    from staghunt.analysis.certify import certificate_to_dict, plan_from_result_data
-    from staghunt.api import check_plan
-    from staghunt.io.result_json import load_json_strict, read_result, settings_to_dict, write_json_atomic, write_result
-    from staghunt.scenario import scenario_to_dict
-    from staghunt.study.executor import InlineExecutor, TaskFailure, run_tasks
-    from staghunt.study.tasks import PlanTask, TaskOutcome, run_plan_task
-
-    methods = tuple(methods)
-    seeds = tuple(int(s) for s in seeds)
+    certificate's budget and tolerance, ``None`` to skip certificates. ``engine`` and
+    ``threads``: those of :func:`staghunt.plan`, which also run the certificates' searches (runs
+    sent to a cluster: ``threads=1``, the workers are the parallelism). ``warn`` receives the
+    memory warning. Returns the :class:`CompareRequest`; raises a
+    :class:`~staghunt.errors.FieldError` (``methods``, ``seeds``, or a field of
+    :func:`~staghunt.api.check_plan`) or a :class:`~staghunt.budget.MemoryBudgetError`."""
+    methods, seeds = tuple(methods), tuple(seeds)
     if not methods:
-        raise ValueError("no methods to compare")
+        raise FieldError("no methods to compare", "methods")
     if not seeds:
-        raise ValueError("no seeds to run")
-    if len(set(methods)) != len(methods) or len(set(seeds)) != len(seeds):
-        raise ValueError("methods and seeds must not repeat")
-    if any(s < 0 for s in seeds):
-        raise ValueError("seeds must be integers >= 0")
+        raise FieldError("no seeds to run", "seeds")
+    if len(set(methods)) != len(methods):
+        raise FieldError("methods must not repeat", "methods")
+    if len(set(seeds)) != len(seeds):
+        raise FieldError("seeds must not repeat", "seeds")
     settings = settings if settings is not None else scenario.solver
-    if certify is not None:
-        certify.check()
+    runs: dict[tuple[str, int], PlanRequest] = {}
+    for m in methods:
+        first = check_plan(scenario, m, seeds[0], settings, engine, threads, certify, warn=warn)
+        per_seed = (first, *(first.with_seed(s) for s in seeds[1:]))
+        runs.update({(m, r.seed): r for r in per_seed})
+    return CompareRequest(scenario, methods, tuple(r.seed for r in per_seed), settings, certify, runs)
+
+
+def run_compare(
+    request: CompareRequest,
+    out_dir: str | os.PathLike[str],
+    *,
+    listener: CompareListener | None = None,
+    executor: Any = None,
+) -> CompareReport:
+    """Plan the checked comparison ``request`` (:func:`check_compare`) with every method and
+    seed, certify each plan, and aggregate.
+
+    ``executor``: where the runs go (:mod:`staghunt.study.executor`; default: in this process,
+    one after the other): every run is one task of :func:`staghunt.study.tasks.run_plan_task`,
+    the task function of ``staghunt sweep``. Files go to ``out_dir`` (see the module docstring)
+    as each run completes; runs are reported to ``listener`` and aggregated in (seed, method)
+    order. A ``KeyboardInterrupt`` leaves every finished run on disk and the aggregate files
+    consistent with them. Raises ``ValueError`` when ``out_dir`` cannot be created or holds runs
+    made with other settings (before any run).
+    """
+    scenario, methods, seeds = request.scenario, request.methods, request.seeds
+    settings, certify = request.settings, request.certify
     executor = executor if executor is not None else InlineExecutor()
-    engine_options = {k: v for k, v in (plan_options or {}).items() if k in ("engine", "threads")}
-    if not executor.local:  # one thread per task: the cluster's workers are the parallelism
-        engine_options["threads"] = 1
-    # Every method's run checked once (settings, engine, memory); each seed reuses the check.
-    requests = {m: check_plan(scenario, m, seeds[0], settings, certify=certify, **engine_options) for m in methods}
     listener = listener or CompareListener()
     out = Path(out_dir)
     runs_dir = out / "runs"
@@ -173,10 +191,10 @@ def run_compare(
         rf, cf = run_file(out, m, s), certificate_file(out, m, s)
         key = f"{m}-s{s}"
         if not rf.exists():
-            tasks.append(PlanTask(requests[m].with_seed(s), key, keep_result=True))
+            tasks.append(PlanTask(request.runs[(m, s)], key, keep_result=True))
         elif certify is not None and not cf.exists():
             _, wp, _ = plan_from_result_data(read_result(rf), str(rf))
-            tasks.append(PlanTask(requests[m].with_seed(s), key, waypoints=wp))
+            tasks.append(PlanTask(request.runs[(m, s)], key, waypoints=wp))
         else:
             resumed[index] = True
             continue
