@@ -170,13 +170,6 @@ def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduc
     two = certify_plan(request, runner=runner, workers=2)
     assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in two.uavs]
     assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, two.uavs))
-    # Three searches on two workers: the third alone on both cores (230 particles: two threads
-    # really run), the same certificate.
-    request = check_certify(scenario1, game.waypoints, CertifyOptions(particles=230, iterations=20), seed=4)
-    one = certify_plan(request, runner=runner, workers=1)
-    tail = certify_plan(request, runner=runner, workers=2, tail_runner=get_engine("numba", threads=2).run_swarm)
-    assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in tail.uavs]
-    assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, tail.uavs))
 
 
 def test_stop_when_certified_returns_the_certificate_it_stopped_on(scenario1):

@@ -151,8 +151,7 @@ def certify_waypoints(request: PlanRequest, waypoints: np.ndarray,
     runner, workers = side_by_side(request.engine)
     checked = CertifyRequest.of_checked(request.scenario, waypoints, request.certify_settings,
                                         request.certify, request.seed)
-    return certify_plan(checked, progress=progress, runner=runner, workers=workers,
-                        tail_runner=request.engine.run_swarm if workers > 1 else None)
+    return certify_plan(checked, progress=progress, runner=runner, workers=workers)
 
 
 def check_plan(

@@ -82,9 +82,8 @@ def get_engine(engine: "str | Engine" = "auto", threads: int | None = None) -> E
 def side_by_side(engine: Engine) -> tuple[SwarmRunner, int]:
     """``(runner, workers)`` for many small independent searches (a certificate's per-UAV
     searches): with the compiled engine on several cores, ``workers`` searches at once, one
-    thread each (no per-iteration barrier, which small swarms pay dearly; the searches left
-    over when fewer than ``workers`` remain are best run on ``engine`` itself, on every core);
-    otherwise the engine's own runner, one search at a time."""
+    thread each (no per-iteration barrier, which small swarms pay dearly); otherwise the
+    engine's own runner, one search at a time."""
     threads = getattr(engine, "threads", 1)
     if engine.name == "numba" and (threads is None or threads > 1):
         from staghunt.engine.threads import usable_cores

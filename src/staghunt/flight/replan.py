@@ -402,7 +402,7 @@ class Replanner:
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))
             cert = certify_plan(request, runner=self._runner, azimuth=azimuth, workers=self._workers,
-                                carried=carried, tail_runner=self.engine.run_swarm if self._workers > 1 else None)
+                                carried=carried)
             spent += sum(u.evaluations for u in cert.uavs)
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)

@@ -251,7 +251,6 @@ def certify_plan(
     azimuth: float = ANGLE_RANGE,
     workers: int = 1,
     carried: Mapping[int, UAVGap] | None = None,
-    tail_runner: SwarmRunner | None = None,
 ) -> Certificate:
     """Nash gaps of the team plan of ``request`` (:func:`check_certify`, run as checked): each
     UAV's search with the request's budget, seed and swarm parameters (``c0``, ``damping``,
@@ -263,10 +262,6 @@ def certify_plan(
     range (the strategy space the plan was solved in). ``workers``: UAV searches run at once
     (threads; each search has its own generator, so the certificate is the same for any
     count; ``runner`` must then be thread-safe, e.g. a compiled engine pinned to one thread).
-    ``tail_runner``: with ``workers``, runs the searches left when fewer than ``workers``
-    remain, one after the other (e.g. the compiled engine on every core, whose results do not
-    depend on its thread count: the third search of three on two cores, instead of one core
-    idling).
     ``carried``: searches made for an earlier plan that stand for this one, by UAV: UAV ``n``'s
     problem (the others' paths) is the one that search fixed, and the UAV now flies a path of
     its own. Its search is not run again: its best deviation is compared with the plan's cost
@@ -286,7 +281,7 @@ def certify_plan(
     feasible = bool(current.total_violation[0] == 0 and np.all(np.isfinite(J)))
     lock = threading.Lock()
 
-    def search(n: int, run: SwarmRunner = runner) -> tuple[UAVGap, str | None]:
+    def search(n: int) -> tuple[UAVGap, str | None]:
         name = names[n]
         if not feasible:
             return UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0), None
@@ -309,7 +304,7 @@ def certify_plan(
                 with lock:
                     progress(_n, len(names), it, total)
         rng = np.random.default_rng([int(seed), n])
-        out = run(problem, run_settings, rng, report, initial)
+        out = runner(problem, run_settings, rng, report, initial)
         best = float(out.best_cost[0])
         deviation = np.array(out.best_waypoints[n])
         if out.best_violation > 0 or not math.isfinite(best):
@@ -321,17 +316,14 @@ def certify_plan(
         deviation.setflags(write=False)
         return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, out.path_evaluations), note
 
-    todo = [n for n in range(len(names)) if not (feasible and carried is not None and n in carried)]
-    found = {n: search(n) for n in range(len(names)) if n not in todo}  # the carried ones
-    if workers > 1 and feasible and len(todo) > 1:
-        # ``workers`` at a time; what is left when fewer remain runs alone on ``tail_runner``.
-        cut = len(todo) - len(todo) % workers if tail_runner is not None else len(todo)
-        with ThreadPoolExecutor(min(workers, max(cut, 1)), thread_name_prefix="staghunt-certify") as pool:
-            found.update(zip(todo[:cut], pool.map(search, todo[:cut])))
-        todo = todo[cut:]
-    found.update((n, search(n, tail_runner or runner)) for n in todo)
-    gaps = [found[n][0] for n in range(len(names))]
-    notes = [found[n][1] for n in range(len(names)) if found[n][1] is not None]
+    searched = len(names) - len(carried or ())
+    if workers > 1 and feasible and searched > 1:
+        with ThreadPoolExecutor(min(workers, searched), thread_name_prefix="staghunt-certify") as pool:
+            found = list(pool.map(search, range(len(names))))
+    else:
+        found = [search(n) for n in range(len(names))]
+    gaps = [g for g, _ in found]
+    notes = [note for _, note in found if note is not None]
     return Certificate(
         uavs=tuple(gaps),
         epsilon=float(epsilon),
