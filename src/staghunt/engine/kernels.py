@@ -1030,28 +1030,32 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
     the block size."""
     P = X.shape[3]
     n_blocks = (P + bs - 1) // bs
-
-    def block(blk, t, mode, it, inertia):  # a closure: Numba inlines it at both calls
-        """Block ``blk`` of iteration ``it`` on scratch ``t``: the one place that spells the
-        entries' calls (their argument order is their definitions')."""
-        q0 = blk * bs
-        nb = min(bs, P - q0)
-        uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
-                 par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
-                 sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t],
-                 acc2[t], flag[t], terms[t], vio[t])
-        team_pass(mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff, par,
-                  form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
-                  terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
-                  vio_out, res_out)
-
     for it in range(it0, it1):
         mode = MODE_INIT if it == 0 else MODE_STEP
         inertia = state[0]
         if serial:
             for blk in range(n_blocks):
-                block(blk, 0, mode, it, inertia)
+                q0 = blk * bs
+                nb = min(bs, P - q0)
+                uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
+                         par, wp, uav, cyl, prm, pedge, grid, sww[0], px[0], py[0], pz[0], ph[0], stx[0],
+                         sty[0], sth[0], prev[0], bits1[0], bits2[0], seg[0], sub[0], ang[0], tmp[0], acc[0],
+                         acc2[0], flag[0], terms[0], vio[0])
+                team_pass(mode, q0, nb, px[0], py[0], pz[0], uav, weights, heads, tails, mu, ref_diff, par,
+                          form[0], hit[0], rx[0], ry[0], rz[0], tmp[0], acc[0], acc2[0], flag[0], better[0],
+                          terms[0], vio[0], res[0], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
+                          vio_out, res_out)
         else:
             for blk in prange(n_blocks):
-                block(blk, get_thread_id(), mode, it, inertia)
+                t = get_thread_id()
+                q0 = blk * bs
+                nb = min(bs, P - q0)
+                uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
+                         par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
+                         sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t],
+                         acc2[t], flag[t], terms[t], vio[t])
+                team_pass(mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff, par,
+                          form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
+                          terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
+                          vio_out, res_out)
         _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)
