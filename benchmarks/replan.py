@@ -265,9 +265,11 @@ def solve_only(job: dict[str, Any]) -> dict[str, Any]:
     from staghunt.flight import FlyConfig
     from staghunt.api import check_plan
     from staghunt.flight.loop import _source, plan_around
+    from staghunt.flight.aside import rest_worker
     from staghunt.flight.replan import Replanner
 
     engine = get_engine("auto")
+    rest_worker(wait=True)  # the plans from rest's process, started once (as a flight does before its first re-plan)
     wp, dyn, n, lead = _with_popup(job, engine)
     scenario, _, settings = _source(job["result"])
     scenario = replace(scenario, dynamics=dyn)

@@ -24,7 +24,8 @@ from staghunt.analysis.certify import plan_from_result_data
 from staghunt.api import PlanRequest, check_plan, plan
 from staghunt.checks import check_inside_site
 from staghunt.costs import CostModel
-from staghunt.engine import Engine
+from staghunt.engine import Engine, side_by_side
+from staghunt.flight.aside import start as start_worker
 from staghunt.flight.reference import Reference
 from staghunt.flight.known import check_piece, swept_obstacles
 from staghunt.flight.replan import FlyConfig, ReplanRecord, Replanner, offline_plan
@@ -437,6 +438,8 @@ def fly(source: Any, *, progress: Callable[[float, float], None] | None = None, 
     resolved = request.plan.engine
     prepare = getattr(resolved, "prepare", None)
     compile_s = float(prepare()) if callable(prepare) else 0.0
+    if side_by_side(resolved)[1] > 1:
+        start_worker()  # the re-plans' second process loads its kernels during the offline plan
     wall0 = time.perf_counter()
     rng = np.random.default_rng(seed)
 

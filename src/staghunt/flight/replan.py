@@ -34,6 +34,7 @@ import math
 import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
 from typing import Any, Callable
 
@@ -42,6 +43,8 @@ import numpy as np
 from staghunt.costs import CostModel, to_absolute
 from staghunt.encoding import ANGLE_RANGE
 from staghunt.engine import Engine, get_engine, side_by_side
+from staghunt.flight.aside import rest_worker, worker_broke
+from staghunt.flight.aside import start as start_worker
 from staghunt.flight.known import (
     KnownWorld,
     check_piece,
@@ -278,6 +281,8 @@ class Replanner:
         self._runner, self._workers = side_by_side(engine)
         # the engine each of two side-by-side solves uses (pinned to one thread), or the engine
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
+        if self._workers > 1:
+            start_worker()  # the process of the plans from rest, ready before they are needed
 
     def solve(self, ref: Reference, t_now: float, trigger: str, scale: int = 1,
               windows: list[tuple[str, float, float]] | None = None,
@@ -320,36 +325,25 @@ class Replanner:
                                   WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine, lead,
                                   stop_retrying=rest_passes)
 
-        def from_rest(engine: Engine, cancel: threading.Event | None = None
-                      ) -> tuple[_Attempt | None, Reference, Piece]:
-            stopped, stop, bad = self._stop_short(ref, t_now, t_s)
-            if bad:
-                return None, stopped, stop
-            rest = remaining_plan(scenario, stopped, stop.t1, K)
-            return (self._attempts(stopped, stop.t1, list(windows), rest, settings, 2, math.inf,
-                                   WIDE_AZIMUTH, rest_rng, engine, cancel=cancel), stopped, stop)
-
+        rest_args = (ref, t_now, t_s, windows, settings, rest_rng)
         # An infeasible moving solve is tried again only if the plan from rest does not pass
         # (asked once the moving one has failed: the same flight on one core and on two).
         if at_rest:
             first, second = moving(self.engine), None
         elif self._workers > 1:
-            cancel = threading.Event()
-            with ThreadPoolExecutor(1) as pool:
-                later = pool.submit(from_rest, self._solo, cancel)
-                first = moving(self._solo, lambda: _passed(later.result()))
-                if first.ref is not None:  # the plan from rest is not needed: stop it
-                    cancel.set()
-                second = later.result()
+            first, second = self._side_by_side(moving, rest_args)
         else:
             rest_box: list[tuple[_Attempt | None, Reference, Piece]] = []
 
             def rest_passes() -> bool:
-                rest_box.append(from_rest(self.engine))
+                rest_box.append(self.from_rest(*rest_args, engine=self.engine))
                 return _passed(rest_box[0])
 
             first = moving(self.engine, rest_passes)
-            second = rest_box[0] if rest_box else (from_rest(self.engine) if first.ref is None else None)
+            if rest_box:
+                second = rest_box[0]
+            else:
+                second = self.from_rest(*rest_args, engine=self.engine) if first.ref is None else None
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
@@ -374,6 +368,67 @@ class Replanner:
             tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, (),
             tuple(used), error)
         return new_ref, self._keep(record)
+
+    def from_rest(self, ref: Reference, t_now: float, t_s: float, windows: list[tuple[str, float, float]],
+                  settings: Any, rng: np.random.Generator, *, engine: Engine, cancel: Any = None
+                  ) -> tuple[_Attempt | None, Reference, Piece]:
+        """The plan from rest of a re-plan at ``t_now`` switching at ``t_s``: the team stops in
+        sync (:meth:`_stop_short`) and the game is solved from where it rests (``None``: that
+        stop breaks a check), drawing from ``rng`` and searching with ``engine``; ``cancel``
+        (an event) stops it after the reply in progress. Returns the attempt, the stopped
+        reference and its stop piece."""
+        stopped, stop, bad = self._stop_short(ref, t_now, t_s)
+        if bad:
+            return None, stopped, stop
+        rest = remaining_plan(self.scenario, stopped, stop.t1, settings.waypoints)
+        return (self._attempts(stopped, stop.t1, list(windows), rest, settings, 2, math.inf,
+                               WIDE_AZIMUTH, rng, engine, cancel=cancel), stopped, stop)
+
+    def _side_by_side(self, moving: Callable[..., _Attempt], rest_args: tuple[Any, ...]
+                      ) -> tuple[_Attempt, tuple[_Attempt | None, Reference, Piece]]:
+        """The moving solve here and the plan from rest beside it, in the worker process
+        (:mod:`staghunt.flight.aside`: no interpreter lock shared) or, while it is not ready or
+        where none can run, in a thread; the plan from rest is cancelled once the moving one
+        passes. The same outcome either way (each solve has its own generator)."""
+        worker = rest_worker()
+        if worker is not None:
+            later = worker.submit(self.state(), rest_args)
+            box: list[tuple[_Attempt | None, Reference, Piece]] = []
+
+            def rest() -> tuple[_Attempt | None, Reference, Piece]:
+                if not box:
+                    try:
+                        box.append(later.result())
+                    except BrokenProcessPool:  # the worker died: solve here (the same result)
+                        worker_broke()
+                        box.append(self.from_rest(*rest_args, engine=self._solo))
+                return box[0]
+
+            first = moving(self._solo, lambda: _passed(rest()))
+            if first.ref is not None:  # the plan from rest is not needed: stop it
+                worker.cancel()
+            return first, rest()
+        cancel = threading.Event()
+        with ThreadPoolExecutor(1) as pool:
+            thread = pool.submit(self.from_rest, *rest_args, engine=self._solo, cancel=cancel)
+            first = moving(self._solo, lambda: _passed(thread.result()))
+            if first.ref is not None:
+                cancel.set()
+            return first, thread.result()
+
+    def state(self) -> dict[str, Any]:
+        """What :meth:`rebuilt` needs to make this re-planner again in another process."""
+        return {"scenario": self.scenario, "dyn": self.dyn, "config": self.config, "search": self.search,
+                "sensed": dict(self.known.sensed), "removed": set(self.known.removed)}
+
+    @classmethod
+    def rebuilt(cls, state: dict[str, Any], engine: Engine) -> "Replanner":
+        """A re-planner from :meth:`state`, searching with ``engine`` (for its plan from rest)."""
+        planner = cls(state["scenario"], state["dyn"], state["config"], engine, np.random.default_rng(0),
+                      state["search"])
+        planner.known.sensed.update(state["sensed"])
+        planner.known.removed.update(state["removed"])
+        return planner
 
     def _certified(self, new_ref: Reference, plan: np.ndarray, sub: Scenario,
                    splice: tuple[Reference, float, float, np.ndarray | None], azimuth: float

@@ -1,0 +1,121 @@
+"""A second process for the plan from rest that a re-plan solves beside the moving one.
+
+On two cores :class:`~staghunt.flight.replan.Replanner` solves the plan from the switch state
+and the stop-then-plan-from-rest at once. In two threads of one process the two solves share
+the interpreter lock, and most of a small solve is Python between short compiled calls: on
+scenario 2 two solves in threads took 1.5-1.8x the time of one. In a process of its own the
+plan from rest takes nothing from the moving solve.
+
+One worker process per Python process (:func:`rest_worker`), started on first use and kept
+(spawned, not forked: the parent has OpenMP threads), with its kernels loaded from Numba's
+cache. A solve in it is cancelled through a shared event, checked after every reply. Its
+result is the same as in a thread: the solve's generator is drawn by the parent and sent
+along, and the worker's engine is the compiled one on one thread.
+"""
+
+from __future__ import annotations
+
+import atexit
+import multiprocessing
+import signal
+import threading
+import warnings
+from concurrent.futures import Future, ProcessPoolExecutor
+from typing import Any
+
+_cancel: Any = None
+"""The worker's cancel event (set in the worker by :func:`_start`)."""
+
+
+def _start(cancel: Any) -> None:
+    """The worker's set-up: the cancel event; Ctrl-C is the parent's to handle (the worker is
+    shut down with it), and warnings are the parent's to report (a solve here reports none)."""
+    global _cancel
+    _cancel = cancel
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    warnings.simplefilter("ignore")
+
+
+def _warm() -> bool:
+    """Import the planner and load the kernels (run once in the worker, before any solve)."""
+    from staghunt.engine import get_engine
+    from staghunt.flight import replan  # noqa: F401 (imported now rather than at the first solve)
+
+    get_engine("numba", threads=1).prepare()
+    return True
+
+
+def _from_rest(state: dict[str, Any], args: tuple[Any, ...]) -> Any:
+    """:meth:`Replanner.from_rest` of a re-planner rebuilt from ``state`` (its scenario,
+    changing world, settings and what it knows), on the compiled engine pinned to one thread."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.replan import Replanner
+
+    engine = get_engine("numba", threads=1)
+    planner = Replanner.rebuilt(state, engine)
+    return planner.from_rest(*args, engine=engine, cancel=_cancel)
+
+
+class RestWorker:
+    """The worker process: :meth:`submit` a re-planner's plan from rest, :meth:`cancel` it."""
+
+    def __init__(self) -> None:
+        context = multiprocessing.get_context("spawn")
+        self._event = context.Event()
+        self._pool = ProcessPoolExecutor(1, mp_context=context, initializer=_start, initargs=(self._event,))
+        self.ready: Future[bool] = self._pool.submit(_warm)
+        self.solves = 0
+
+    def submit(self, state: dict[str, Any], args: tuple[Any, ...]) -> Future[Any]:
+        """Solve ``Replanner.rebuilt(state).from_rest(*args)`` in the worker."""
+        self._event.clear()
+        self.solves += 1
+        return self._pool.submit(_from_rest, state, args)
+
+    def cancel(self) -> None:
+        self._event.set()
+
+    def close(self) -> None:
+        self._pool.shutdown(wait=False, cancel_futures=True)
+
+
+_worker: RestWorker | None = None
+_failed = False
+_lock = threading.Lock()
+
+
+def start() -> RestWorker | None:
+    """Start the process's worker if it is not running yet, without waiting for it (``None``
+    if no process can be started here)."""
+    global _worker, _failed
+    with _lock:
+        if _worker is None and not _failed:
+            try:
+                _worker = RestWorker()
+                atexit.register(_worker.close)
+            except (OSError, RuntimeError):
+                _failed = True
+        return None if _failed else _worker
+
+
+def rest_worker(wait: bool = False) -> RestWorker | None:
+    """The worker, if it has loaded its kernels (``wait``: start it and wait until it has,
+    a few seconds the first time); else ``None``, and the caller solves in a thread (the
+    same result). A worker that failed to start, or died, is not used again."""
+    global _failed
+    worker = start() if wait else _worker
+    if worker is None or _failed or not (wait or worker.ready.done()):
+        return None
+    try:
+        worker.ready.result()
+    except Exception:  # noqa: BLE001 (a worker that cannot even start: solve in threads)
+        worker_broke()
+        return None
+    return worker
+
+
+def worker_broke() -> None:
+    """The worker died (its pool is broken): solve in threads from now on."""
+    global _failed
+    with _lock:
+        _failed = True
