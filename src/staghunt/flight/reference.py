@@ -12,7 +12,8 @@ A piece is either
   velocity and acceleration) and ends at rest. Times come from a speed profile
   (:func:`knot_times`: cruise speed, slower in turns, accelerations within half the limit),
   and if a peak still breaks ``max_speed`` or ``max_acceleration`` (norms, checked on a 20 ms
-  grid) the knot intervals where it does (and their neighbours) are slowed down, so a sharp
+  grid, on a 100 ms one until that passes) the knot intervals where it does (and their
+  neighbours) are slowed down, so a sharp
   turn at the start of a re-plan slows the start, not the whole flight; or
 - a **synchronised stop** (:func:`stop_piece`): the previous piece with time slowed down by
   one common warp ``tau(t)``, ``tau' = 1 - (3u^2 - 2u^3)``, ``u = (t - t_s) / T``: every UAV
@@ -42,6 +43,9 @@ from staghunt.trajectory.timing import split_legs
 
 CHECK_STEP_S = 0.02
 """Grid of the speed and acceleration checks (s)."""
+COARSE_STEP_S = 0.1
+"""Grid of a timing's first tries (s): the peaks of a schedule far over the limits show on it as
+well, for a fifth of the samples; a schedule is accepted on the :data:`CHECK_STEP_S` grid only."""
 MARGIN = 0.98
 """Peaks are kept below this share of the limits (the grid may miss a peak between samples)."""
 
@@ -137,11 +141,11 @@ class Reference:
         return Reference(keep + (piece,))
 
 
-def _peaks(spline: BSpline, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _peaks(spline: BSpline, times: np.ndarray, step: float = CHECK_STEP_S) -> tuple[np.ndarray, np.ndarray]:
     """``(M - 1,)`` each: the peak speed and acceleration (norms, over the team) of ``spline``
-    on each knot interval of ``times`` ``(M,)``, sampled every :data:`CHECK_STEP_S`."""
+    on each knot interval of ``times`` ``(M,)``, sampled every ``step`` seconds."""
     t0, t1 = float(times[0]), float(times[-1])
-    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / step) + 1))
     d1, d2 = spline(t, nu=1), spline(t, nu=2)  # (T, N, 3)
     # the root of the largest square only (a quarter of a team's timing went into norms)
     v = np.sqrt(np.einsum("tnc,tnc->tn", d1, d1).max(axis=1))  # (T,)
@@ -223,11 +227,16 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     dt = np.diff(base)
     total = float(base[-1])
     stretch = 1.0
+    step = COARSE_STEP_S
     for _ in range(max_tries):
         times = t0 + np.concatenate([[0.0], np.cumsum(dt)])
         spline = _quintic(times, dense, v0, a0)
-        vk, ak = _peaks(spline, times)
+        vk, ak = _peaks(spline, times, step)
         v, a = float(vk.max()), float(ak.max())
+        if v <= v_lim and a <= a_lim and step > CHECK_STEP_S:  # passes coarsely: check it finely
+            step = CHECK_STEP_S
+            vk, ak = _peaks(spline, times, step)
+            v, a = float(vk.max()), float(ak.max())
         if v <= v_lim and a <= a_lim:
             return Piece("path", float(times[0]), float(times[-1]), times, dense, spline=spline)
         # Slow down where a limit is broken (and one interval on each side), not everywhere: a
