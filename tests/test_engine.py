@@ -393,6 +393,43 @@ def test_deviation_costs_match_the_full_evaluation(n_uavs, radii, terrain):
         assert np.isinf(got).any() and np.isfinite(got).any()
 
 
+@pytest.mark.parametrize("terrain", [None, "bilinear"])
+@pytest.mark.parametrize("n_uavs", [3, 6])
+def test_compiled_polish_is_the_reference_loop(n_uavs, terrain):
+    """``game``'s polish in one compiled call (``kernels.polish``) takes the very path, and
+    spends the very evaluations, of its Python loop on the same deviation costs, for budgets
+    that end it mid-sweep and after it converged, paths that start near obstacles and the site
+    box's faces (clamped moves), on flat ground and on a DEM."""
+    import dataclasses
+
+    from staghunt.solvers.game import polish
+
+    model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
+    model = dataclasses.replace(model, cylinders=frozen(np.array([[15.0, 50.0, 2.0]])))  # between two routes
+    K = 5
+    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
+    base = model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+    engine = NumbaEngine(threads=1)
+    rng = np.random.default_rng(11)
+    compared = moved = 0
+    for trial in range(16):
+        n = int(rng.integers(n_uavs))
+        plan_ = base.copy()
+        plan_[n] = np.clip(plan_[n] + rng.normal(0.0, [3.0, 3.0, 4.0], size=(K, 3)), model.lower, model.upper)
+        if trial % 4 == 0:
+            plan_[n, 0, 2] = model.upper[2]  # on the box's top face: some moves are clamped
+        if evaluate(model, plan_[None]).total_violation[0] != 0:
+            continue
+        for budget in (6 * K, 6 * K + 1, 500, 4000):
+            want, spent_want = polish(model, plan_, n, budget, engine.evaluate, compiled=False)
+            got, spent_got = polish(model, plan_, n, budget, engine.evaluate)
+            assert spent_got == spent_want
+            np.testing.assert_array_equal(got, want)
+            compared += 1
+            moved += not np.array_equal(got, plan_)
+    assert compared >= 20 and moved >= 10
+
+
 def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
     """The arguments bound from the kernels' parameter names (engine.arrays.kernel_args) are the
     very objects, in the order, that the hand-written calls they replaced passed."""

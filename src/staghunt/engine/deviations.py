@@ -9,8 +9,8 @@ import numpy as np
 
 from staghunt.costs import CostModel
 from staghunt.engine import kernels as kn
-from staghunt.engine.arrays import no_swarm
-from staghunt.engine.numba_engine import _model_arrays_cached, _Pass, evaluate
+from staghunt.engine.arrays import kernel_args, no_swarm
+from staghunt.engine.numba_engine import POLISH_PER_CALL, _model_arrays_cached, _Pass, evaluate
 from staghunt.engine.scratch import Scratch
 
 
@@ -32,14 +32,16 @@ class Deviations:
         member[n] = 0
         self.sa = no_swarm(N, K, players=np.array([n], dtype=np.int64), member=member)
         self.plan, self.n = plan, n
+        self.lower = np.array(model.lower, dtype=np.float64)
+        self.upper = np.array(model.upper, dtype=np.float64)
         self._runs: dict[int, _Pass] = {}
         self._scratch: Scratch | None = None
 
-    def __call__(self, paths: np.ndarray) -> np.ndarray:
-        """``(Q,)`` ``J_n`` for ``paths`` ``(Q, K, 3)``; ``inf`` where infeasible."""
-        Q = len(paths)
+    def _run(self, Q: int) -> _Pass:
+        """The pass over ``Q`` allocations (the plan with UAV ``n``'s rows to fill), made once per
+        batch size (a polish sweep, its combined move) and reused."""
         run = self._runs.get(Q)
-        if run is None:  # one pass per batch size (a polish sweep, its combined move), reused
+        if run is None:
             N, K = self.plan.shape[0], self.plan.shape[1]
             team = np.repeat(self.plan[None], Q, axis=0)
             run = self._runs[Q] = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
@@ -47,6 +49,24 @@ class Deviations:
             if self._scratch is None:
                 self._scratch = Scratch(N, K, 0, run.B)
             run.scratch = [self._scratch]
+        return run
+
+    def polish(self, J: float, max_evaluations: int, step: float, min_step: float) -> tuple[np.ndarray, float, int]:
+        """:func:`staghunt.solvers.game.polish` of UAV ``n``'s path (cost ``J``) in one compiled
+        call (:func:`staghunt.engine.kernels.polish`: the same decisions on the same costs, so
+        the same path). Returns the ``(K, 3)`` path, its ``J_n`` and the evaluations spent."""
+        K = self.plan.shape[1]
+        run = self._run(6 * K + 1)  # the 6 K one-coordinate moves and their combination
+        path = self.plan[self.n].copy()
+        Jn, spent = kn.polish(self.n, float(step), float(min_step), int(max_evaluations), float(J), self.lower,
+                              self.upper, path, *kernel_args(kn.polish, run, self.ma, self.sa, run.scratch[0],
+                                                             per_call=POLISH_PER_CALL))
+        return path, float(Jn), int(spent)
+
+    def __call__(self, paths: np.ndarray) -> np.ndarray:
+        """``(Q,)`` ``J_n`` for ``paths`` ``(Q, K, 3)``; ``inf`` where infeasible."""
+        Q = len(paths)
+        run = self._run(Q)
         run.wp[:, self.n] = paths
         run.work(0, Q, 0)
         clear = np.all(run.vio_out.reshape(Q, -1) == 0, axis=1)

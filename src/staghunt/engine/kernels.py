@@ -1059,3 +1059,99 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
                           terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
                           vio_out, res_out)
         _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)
+
+
+@subroutine
+def _candidate(best, i, sign, step, lower, upper, out) -> None:  # noqa: ANN001
+    """Row ``out (K, 3)``: ``best (K, 3)`` with coordinate ``i`` (waypoint ``i // 3``, axis
+    ``i % 3``) moved by ``sign * step`` (``sign`` 0: none), clamped to the site box, in NumPy's
+    arithmetic (``clip(best + step * move, lower, upper)``)."""
+    K = best.shape[0]
+    for k in range(K):
+        for c in range(3):
+            m = sign if k * 3 + c == i else 0.0
+            v = best[k, c] + step * m
+            v = max(v, lower[c])
+            out[k, c] = min(v, upper[c])
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: ANN001
+           sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights, heads, tails, mu,
+           ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out, vio_out,
+           res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2,
+           flag, terms, vio, form, hit, rx, ry, rz, better, res):
+    """The twin of :func:`staghunt.solvers.game.polish` on UAV ``n``'s deviations in one call:
+    a pattern search from ``path (K, 3)`` (cost ``J0``) that moves one coordinate by
+    ``+-step`` per candidate (``6 K`` of them, rows ``0 .. 6K-1`` of ``wp``, whose other UAVs'
+    rows hold the fixed paths), then the combination of every improving move (row ``6 K``),
+    evaluated in ``MODE_DEVIATE`` (``inf`` where a candidate breaks a hard constraint); the
+    best that lowers ``J_n`` by more than ``1e-9`` relative is taken, else ``step`` halves,
+    down to ``min_step``, within ``max_evaluations``. The same decisions in the same order as
+    the reference, so the same path. Writes the result into ``path``; returns ``(J_n, spent)``."""
+    K = path.shape[0]
+    M = 3 * K
+    Q = 2 * M
+    B = px.shape[2]
+    best = path.copy()
+    Jc = np.empty(Q)
+    gain = np.empty(Q)
+    Jn = J0
+    spent = 0
+    while step >= min_step and spent + Q + 1 <= max_evaluations:
+        for i in range(M):
+            _candidate(best, i, 1.0, step, lower, upper, wp[i, n])
+            _candidate(best, i, -1.0, step, lower, upper, wp[M + i, n])
+        for q0 in range(0, Q, B):
+            nb = min(B, Q - q0)
+            uav_pass(MODE_DEVIATE, q0, nb, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial, sw, member, offsets,
+                     fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1,
+                     bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
+            team_pass(MODE_DEVIATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, form, hit,
+                      rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB, pcost, pviol, cost, viol,
+                      J, players, terms_out, vio_out, res_out)
+        spent += Q
+        top = -np.inf
+        for q in range(Q):
+            Jc[q] = _deviation_cost(q, n, vio_out, res_out)
+            gain[q] = Jn - Jc[q]
+            if gain[q] > top:
+                top = gain[q]
+        if not top > 1e-9 * Jn:
+            step /= 2
+            continue
+        for i in range(M):
+            g0 = gain[i]
+            g1 = gain[M + i]
+            d = 1.0 if g0 >= g1 else -1.0
+            wp[Q, n, i // 3, i % 3] = best[i // 3, i % 3] + step * (d * (1.0 if max(g0, g1) > 0 else 0.0))
+        for k in range(K):
+            for c in range(3):
+                wp[Q, n, k, c] = min(max(wp[Q, n, k, c], lower[c]), upper[c])
+        uav_pass(MODE_DEVIATE, Q, 1, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial, sw, member, offsets,
+                 fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1,
+                 bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
+        team_pass(MODE_DEVIATE, Q, 1, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, form, hit,
+                  rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB, pcost, pviol, cost, viol,
+                  J, players, terms_out, vio_out, res_out)
+        spent += 1
+        combined = _deviation_cost(Q, n, vio_out, res_out)
+        i = int(np.argmax(gain))
+        if combined < Jc[i]:
+            best[:, :] = wp[Q, n]
+            Jn = combined
+        else:
+            _candidate(best, i % M, 1.0 if i < M else -1.0, step, lower, upper, best)
+            Jn = Jc[i]
+    path[:, :] = best
+    return Jn, spent
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _deviation_cost(q, n, vio_out, res_out) -> float:  # noqa: ANN001
+    """``J_n`` of evaluated row ``q``, ``inf`` if any of its violations is not zero."""
+    for m in range(vio_out.shape[1]):
+        for i in range(vio_out.shape[2]):
+            if vio_out[q, m, i] != 0.0:
+                return np.inf
+    return res_out[q, 2, n]

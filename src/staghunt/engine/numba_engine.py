@@ -69,6 +69,7 @@ _prepare_lock = threading.Lock()
 
 UAV_PASS_PER_CALL = ("mode", "q0", "nb", "it", "key", "inertia")
 TEAM_PASS_PER_CALL = ("mode", "q0", "nb")
+POLISH_PER_CALL = ("n", "step", "min_step", "max_evaluations", "J0", "lower", "upper", "path")
 """The kernel entries' leading parameters given at each call; the rest are bound by name
 (:func:`staghunt.engine.arrays.kernel_args`)."""
 
@@ -134,9 +135,11 @@ class _Pass:
             self.block(q0, min(self.B, p1 - q0), worker)
 
 
-ENTRIES = ("uav_pass", "team_pass", "select_global", "iterate")
-"""Compiled entry points; ``iterate`` calls the first three (it is compiled last, once they are
-in the cache)."""
+ENTRIES = ("uav_pass", "team_pass", "select_global", "iterate", "polish")
+"""Compiled entry points; ``iterate`` calls the first three and ``polish`` the first two (they are
+compiled last, side by side, once those are in the cache)."""
+LATE_HELPER_ENTRIES = ("polish",)
+"""Entry points a second helper subprocess compiles while this process compiles ``iterate``."""
 
 
 def _tiny(entries: Iterable[str]) -> None:
@@ -178,6 +181,15 @@ def _tiny(entries: Iterable[str]) -> None:
         run.block(0, P, 0, kernel_names)
     if "select_global" in names:
         kn.select_global(run.cost, run.viol, np.zeros((N, 1)), 0.0, True)
+    if "polish" in names:  # UAV 0's deviations from the fixed path of UAV 1 (MODE_DEVIATE)
+        solo = replace(ma, par=np.concatenate([par, np.zeros(N * kn.SOLO_STRIDE)]))
+        players = no_swarm(N, K, players=np.zeros(1, dtype=np.int64), member=np.array([0, -1], dtype=np.int64))
+        dev = _Pass(solo, players, N, K, 0, 1, 0, wp=np.zeros((6 * K + 1, N, K, 3)))
+        dev.ensure_scratch(1)
+        path = np.zeros((K, 3))
+        kn.polish(0, 1.0, 0.5, 0, 1.0, np.zeros(3), np.ones(3), path,
+                  *kernel_args(kn.polish, dev, solo, players, dev.scratch[0], per_call=POLISH_PER_CALL))
+        dev.release()
     if "iterate" in names:
         hist = np.zeros((3, N))
         for threads in sorted({1, min(2, kernel_threads())}):  # the serial loop, then the parallel one
@@ -230,7 +242,7 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
         say = notify if notify is not None else logger.warning
         t0 = time.perf_counter()
         errors: list[BaseException] = []
-        main_entries = [e for e in ENTRIES if e not in HELPER_ENTRIES and e != "iterate"]
+        main_entries = [e for e in ENTRIES if e not in HELPER_ENTRIES and e not in ("iterate", "polish")]
 
         def target() -> None:
             try:
@@ -259,7 +271,16 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
                 helper.kill()
         if errors:
             raise errors[0]
-        _tiny(ENTRIES)  # loads the helper's work (or compiles it here if the helper failed)
+        late = None  # the last entries (both re-optimise the two kernels inside them) side by side
+        if helper is not None:
+            late = _spawn_helper(LATE_HELPER_ENTRIES)
+        _tiny([e for e in ENTRIES if late is None or e not in LATE_HELPER_ENTRIES])
+        if late is not None:
+            try:
+                late.wait(timeout=600)
+            except subprocess.TimeoutExpired:
+                late.kill()
+            _tiny(LATE_HELPER_ENTRIES)  # loads the helper's work (or compiles it here if it failed)
         _ready.set()
         return time.perf_counter() - t0
 

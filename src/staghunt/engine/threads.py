@@ -19,9 +19,10 @@ import itertools
 import math
 import os
 import statistics
-import threading
-from concurrent.futures import Future, ThreadPoolExecutor
+from concurrent.futures import Future
 from typing import Callable
+
+from staghunt.solvers.swarm import shared_pool
 
 PROBE_EVERY = 100
 """Iterations between two probes (the first probe starts at the first iteration)."""
@@ -48,20 +49,6 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-_POOLS: dict[int, ThreadPoolExecutor] = {}
-_POOLS_LOCK = threading.Lock()
-
-
-def _shared_pool(workers: int) -> ThreadPoolExecutor:
-    """One process-wide pool per size, created on first use: starting threads for every short
-    run (``game``'s many replies) cost more than the runs. Its idle threads end with the process."""
-    with _POOLS_LOCK:
-        pool = _POOLS.get(workers)
-        if pool is None:
-            pool = _POOLS[workers] = ThreadPoolExecutor(workers, thread_name_prefix="staghunt-block")
-        return pool
-
-
 class BlockRunner:
     """Runs ``work(p0, p1, worker)`` over ``[0, P)`` split into blocks, on ``1..max_threads`` threads.
 
@@ -72,7 +59,7 @@ class BlockRunner:
 
     def __init__(self, max_threads: int) -> None:
         self.max_threads = max(1, int(max_threads))
-        self._pool = _shared_pool(self.max_threads - 1) if self.max_threads > 1 else None
+        self._pool = shared_pool(self.max_threads - 1, "block") if self.max_threads > 1 else None
 
     def run(self, work: Callable[[int, int, int], None], n_particles: int, threads: int, align: int = 8) -> None:
         """Process all particles with ``threads`` threads (``1 <= threads <= max_threads``):

@@ -128,7 +128,7 @@ def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
 
 def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
            evaluator: Evaluator = evaluate, step: float = POLISH_STEP,
-           min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
+           min_step: float = POLISH_MIN_STEP, compiled: bool = True) -> tuple[np.ndarray, int]:
     """Local pattern search on UAV ``n``'s free waypoints in the site frame, the others fixed.
 
     The spherical encoding moves every later waypoint with each step, so a swarm refines a
@@ -138,7 +138,10 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     else ``step`` halves, down to ``min_step`` metres. Returns the ``(N, K, 3)`` plan (``plan``
     itself if nothing improved) and the path evaluations spent (``<= max_evaluations``).
     ``evaluator`` scores the candidates (an engine's ``evaluate``); the plan's own cost is
-    taken with the same evaluator, so every comparison is made in one arithmetic.
+    taken with the same evaluator, so every comparison is made in one arithmetic. On the
+    compiled engine (``compiled``) the whole search is one compiled call making the same
+    decisions on the same costs (:meth:`~staghunt.engine.deviations.Deviations.polish`); this
+    loop is its reference.
     """
     K = plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
@@ -153,6 +156,13 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     # an engine may evaluate the deviation alone (same J_n, same feasibility verdicts).
     engine = getattr(evaluator, "__self__", None)
     fast = engine.deviations(model, plan, n) if hasattr(engine, "deviations") else None
+    if fast is not None and compiled:  # the same search in one compiled call
+        path, _, spent = fast.polish(J, max_evaluations, step, min_step)
+        if np.array_equal(path, plan[n]):
+            return plan, spent
+        best = plan.copy()
+        best[n] = path
+        return best, spent
 
     def own(paths: np.ndarray) -> np.ndarray:
         return fast(paths) if fast is not None else _own_costs(model, best, n, paths, evaluator)

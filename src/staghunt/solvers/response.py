@@ -44,7 +44,6 @@ from __future__ import annotations
 
 import math
 import threading
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Mapping
 
@@ -56,7 +55,7 @@ from staghunt.inputs import check_waypoints
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
 from staghunt.solvers.base import RequestError, check_seed
 from staghunt.solvers.problem import solo_problem
-from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
+from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm, shared_pool
 
 DEFAULT_EPSILON = 0.01
 """Default tolerance: a relative Nash gap of at most 1 % of the UAV's own cost."""
@@ -318,8 +317,7 @@ def certify_plan(
 
     searched = len(names) - len(carried or ())
     if workers > 1 and feasible and searched > 1:
-        with ThreadPoolExecutor(min(workers, searched), thread_name_prefix="staghunt-certify") as pool:
-            found = list(pool.map(search, range(len(names))))
+        found = list(shared_pool(min(workers, searched), "certify").map(search, range(len(names))))
     else:
         found = [search(n) for n in range(len(names))]
     gaps = [g for g, _ in found]

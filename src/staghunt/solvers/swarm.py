@@ -8,6 +8,8 @@ every swarm together forms joint allocation ``i``, evaluated as a whole into a c
 
 from __future__ import annotations
 
+import threading
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Callable, Protocol
 
@@ -17,6 +19,23 @@ from staghunt.scenario.model import SolverSettings
 from staghunt.solvers.dominance import best_index, dominates
 from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.pso import position_step, velocity_step
+
+
+_POOLS: dict[tuple[str, int], ThreadPoolExecutor] = {}
+_POOLS_LOCK = threading.Lock()
+
+
+def shared_pool(workers: int, purpose: str) -> ThreadPoolExecutor:
+    """One process-wide pool of ``workers`` threads per ``purpose`` (``"block"``: an engine's
+    particle blocks; ``"certify"``: a certificate's UAV searches), created on first use:
+    starting threads for every short run (``game``'s many replies, each re-plan's
+    certificates) costs more than the runs (about a millisecond a thread). Its idle threads end
+    with the process. Work on a pool must not wait for work on the same pool."""
+    with _POOLS_LOCK:
+        pool = _POOLS.get((purpose, workers))
+        if pool is None:
+            pool = _POOLS[purpose, workers] = ThreadPoolExecutor(workers, thread_name_prefix=f"staghunt-{purpose}")
+        return pool
 
 
 class Progress(Protocol):
