@@ -1088,7 +1088,10 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
     evaluated in ``MODE_DEVIATE`` (``inf`` where a candidate breaks a hard constraint); the
     best that lowers ``J_n`` by more than ``1e-9`` relative is taken, else ``step`` halves,
     down to ``min_step``, within ``max_evaluations``. The same decisions in the same order as
-    the reference, so the same path. Writes the result into ``path``; returns ``(J_n, spent)``."""
+    the reference, so the same path. Writes the result into ``path``; returns ``(J_n, spent)``.
+
+    Each pass of the loop evaluates rows ``r0 .. r1-1``: a sweep's candidates, or (``combine``)
+    the combined move after a sweep that improved."""
     K = path.shape[0]
     M = 3 * K
     Q = 2 * M
@@ -1098,51 +1101,51 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
     gain = np.empty(Q)
     Jn = J0
     spent = 0
-    while step >= min_step and spent + Q + 1 <= max_evaluations:
-        for i in range(M):
-            _candidate(best, i, 1.0, step, lower, upper, wp[i, n])
-            _candidate(best, i, -1.0, step, lower, upper, wp[M + i, n])
-        for q0 in range(0, Q, B):
-            nb = min(B, Q - q0)
+    combine = False
+    while combine or (step >= min_step and spent + Q + 1 <= max_evaluations):
+        if combine:  # the combination of every improving move, clamped
+            r0, r1 = Q, Q + 1
+            for i in range(M):
+                g0 = gain[i]
+                g1 = gain[M + i]
+                d = 1.0 if g0 >= g1 else -1.0
+                v = best[i // 3, i % 3] + step * (d * (1.0 if max(g0, g1) > 0 else 0.0))
+                wp[Q, n, i // 3, i % 3] = min(max(v, lower[i % 3]), upper[i % 3])
+        else:  # a sweep: every coordinate moved by +-step
+            r0, r1 = 0, Q
+            for i in range(M):
+                _candidate(best, i, 1.0, step, lower, upper, wp[i, n])
+                _candidate(best, i, -1.0, step, lower, upper, wp[M + i, n])
+        for q0 in range(r0, r1, B):
+            nb = min(B, r1 - q0)
             uav_pass(MODE_DEVIATE, q0, nb, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial, sw, member, offsets,
                      fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1,
                      bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
             team_pass(MODE_DEVIATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, form, hit,
                       rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB, pcost, pviol, cost, viol,
                       J, players, terms_out, vio_out, res_out)
-        spent += Q
+        spent += r1 - r0
+        if combine:  # the combination or the best single move, whichever is cheaper
+            combine = False
+            combined = _deviation_cost(Q, n, vio_out, res_out)
+            i = int(np.argmax(gain))
+            if combined < Jc[i]:
+                best[:, :] = wp[Q, n]
+                Jn = combined
+            else:
+                _candidate(best, i % M, 1.0 if i < M else -1.0, step, lower, upper, best)
+                Jn = Jc[i]
+            continue
         top = -np.inf
         for q in range(Q):
             Jc[q] = _deviation_cost(q, n, vio_out, res_out)
             gain[q] = Jn - Jc[q]
             if gain[q] > top:
                 top = gain[q]
-        if not top > 1e-9 * Jn:
-            step /= 2
-            continue
-        for i in range(M):
-            g0 = gain[i]
-            g1 = gain[M + i]
-            d = 1.0 if g0 >= g1 else -1.0
-            wp[Q, n, i // 3, i % 3] = best[i // 3, i % 3] + step * (d * (1.0 if max(g0, g1) > 0 else 0.0))
-        for k in range(K):
-            for c in range(3):
-                wp[Q, n, k, c] = min(max(wp[Q, n, k, c], lower[c]), upper[c])
-        uav_pass(MODE_DEVIATE, Q, 1, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial, sw, member, offsets,
-                 fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1,
-                 bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
-        team_pass(MODE_DEVIATE, Q, 1, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, form, hit,
-                  rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB, pcost, pviol, cost, viol,
-                  J, players, terms_out, vio_out, res_out)
-        spent += 1
-        combined = _deviation_cost(Q, n, vio_out, res_out)
-        i = int(np.argmax(gain))
-        if combined < Jc[i]:
-            best[:, :] = wp[Q, n]
-            Jn = combined
+        if top > 1e-9 * Jn:
+            combine = True
         else:
-            _candidate(best, i % M, 1.0 if i < M else -1.0, step, lower, upper, best)
-            Jn = Jc[i]
+            step /= 2
     path[:, :] = best
     return Jn, spent
 
