@@ -338,6 +338,27 @@ def test_replan_is_the_same_flight_on_one_core_and_on_two(calm):
     assert sum(x.evaluations for x in two.replans) >= sum(x.evaluations for x in one.replans)
 
 
+def _start_rest_worker() -> None:
+    from staghunt.flight.aside import rest_worker
+
+    assert rest_worker(wait=True) is not None
+
+
+def test_a_process_that_started_the_rest_worker_exits():
+    """A process that multiprocessing started (a pool's worker flying episodes) and that started
+    the plans-from-rest worker exits when its work is done: the worker is told to stop before
+    multiprocessing joins the children (it used to wait for the worker for ever)."""
+    import multiprocessing
+
+    process = multiprocessing.get_context("spawn").Process(target=_start_rest_worker)
+    process.start()
+    process.join(timeout=120)
+    alive = process.is_alive()
+    if alive:
+        process.kill()
+    assert not alive and process.exitcode == 0
+
+
 def test_popup_too_close_to_stop_within_twice_the_limit_brakes_harder(calm, monkeypatch):
     """A pop-up 1.9 m in front of a UAV at 4 m/s: an emergency stop at 2 x 3 m/s^2 runs into
     it (by 0.26 m, measured); the ladder goes on to 3 x and the simulated UAV stays clear (by

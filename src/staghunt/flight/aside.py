@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import atexit
 import multiprocessing
+import multiprocessing.util
 import signal
 import threading
 import warnings
@@ -76,7 +77,9 @@ class RestWorker:
         self._event.set()
 
     def close(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Stop the worker and wait for it (a solve in progress stops after its reply)."""
+        self._event.set()
+        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 _worker: RestWorker | None = None
@@ -93,6 +96,12 @@ def start() -> RestWorker | None:
             try:
                 _worker = RestWorker()
                 atexit.register(_worker.close)
+                # In a process that multiprocessing started (a pool's worker flying episodes),
+                # atexit does not run: at exit it joins its children, and the worker, never told
+                # to stop, would keep that process alive for ever. Its finalizers run first, by
+                # priority: this one before the queue to the worker is closed (priority 10),
+                # else the stop signal is queued behind the queue's end and never sent.
+                multiprocessing.util.Finalize(_worker, _worker.close, exitpriority=100)
             except (OSError, RuntimeError):
                 _failed = True
         return None if _failed else _worker
