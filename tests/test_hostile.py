@@ -728,7 +728,10 @@ def test_ctrl_c_during_the_search(tmp_path):
     proc = subprocess.Popen([sys.executable, "-u", "-m", "staghunt", "plan", "scenario1", "--particles", "20",
                              "--iterations", "1000000", "--waypoints", "3", "--engine", "numpy", "--no-certify",
                              "--no-plots", "--out", "out"], cwd=tmp_path, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            # A suite started in the background (nohup, `&`) ignores SIGINT, and a
+                            # child inherits that: Python then installs no handler and Ctrl-C is lost.
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     deadline = time.monotonic() + 30
     while time.monotonic() < deadline and not (tmp_path / "out").exists():
         time.sleep(0.05)
