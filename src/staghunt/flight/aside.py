@@ -15,7 +15,6 @@ along, and the worker's engine is the compiled one on one thread.
 
 from __future__ import annotations
 
-import atexit
 import multiprocessing
 import multiprocessing.util
 import signal
@@ -95,12 +94,11 @@ def start() -> RestWorker | None:
         if _worker is None and not _failed:
             try:
                 _worker = RestWorker()
-                atexit.register(_worker.close)
-                # In a process that multiprocessing started (a pool's worker flying episodes),
-                # atexit does not run: at exit it joins its children, and the worker, never told
-                # to stop, would keep that process alive for ever. Its finalizers run first, by
-                # priority: this one before the queue to the worker is closed (priority 10),
-                # else the stop signal is queued behind the queue's end and never sent.
+                # Stopped at exit by multiprocessing's finalizers, which run in every process
+                # (atexit does not in one that multiprocessing started, a pool's worker flying
+                # episodes: there the worker, never told to stop, kept the process alive for
+                # ever), by priority: this one before the queue to the worker is closed
+                # (priority 10), else the stop signal is queued behind the queue's end.
                 multiprocessing.util.Finalize(_worker, _worker.close, exitpriority=100)
             except (OSError, RuntimeError):
                 _failed = True
