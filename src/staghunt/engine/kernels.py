@@ -9,8 +9,8 @@ Two entry points run one block of ``nb <= B`` particles, in this order:
   (or, in ``MODE_EVALUATE``, the outputs of the twin of :func:`staghunt.costs.evaluate`).
 
 :func:`select_global` then picks the global best. :func:`iterate` runs stretches of a swarm's
-iterations in one call (both entries over all blocks, serially or in a ``prange`` over the
-blocks, then the global best), so a small swarm pays no per-block dispatch from Python and no
+iterations in one call (both entries over all blocks through :func:`_block`, serially or in a
+``prange`` over the blocks, then the global best), so a small swarm pays no per-block dispatch from Python and no
 Python-level barrier per iteration. Intermediate results stay in the block's
 scratch arrays (:class:`staghunt.engine.scratch.Scratch`). Callers bind the arrays by these
 kernels' parameter names (:func:`staghunt.engine.arrays.kernel_args`), so each definition below is
@@ -1013,6 +1013,26 @@ def _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)
         state[0] = state[0] * state[2]
 
 
+@subroutine
+def _block(mode, q0, nb, it, key, inertia, t, shared, scratch) -> None:  # noqa: ANN001
+    """Both entries on particles ``q0 .. q0+nb`` of :func:`iterate`'s swarm, on thread ``t``'s
+    scratch: the one place where ``iterate`` spells their arguments (``shared``: the run's,
+    model's and swarm's arrays; ``scratch``: the per-thread arrays, thread axis first, in the
+    order :func:`iterate` packs them)."""
+    (X, V, PB, gbest, initial, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights,
+     heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out) = shared
+    (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
+     terms, vio, form, hit, rx, ry, rz, better, res) = scratch
+    uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
+             par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t], sty[t], sth[t],
+             prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t], acc2[t], flag[t], terms[t],
+             vio[t])
+    team_pass(mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff, par,
+              form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
+              terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
+              vio_out, res_out)
+
+
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, member, offsets, fixed,  # noqa: ANN001
             par, uav, cyl, prm, pedge, grid, weights, heads, tails, mu, ref_diff, players,
@@ -1030,34 +1050,19 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
     the block size."""
     P = X.shape[3]
     n_blocks = (P + bs - 1) // bs
+    shared = (X, V, PB, gbest, initial, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights,
+              heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out)
+    scratch = (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
+               terms, vio, form, hit, rx, ry, rz, better, res)
     for it in range(it0, it1):
         mode = MODE_INIT if it == 0 else MODE_STEP
         inertia = state[0]
         if serial:
             for blk in range(n_blocks):
-                q0 = blk * bs
-                nb = min(bs, P - q0)
-                uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
-                         par, wp, uav, cyl, prm, pedge, grid, sww[0], px[0], py[0], pz[0], ph[0], stx[0],
-                         sty[0], sth[0], prev[0], bits1[0], bits2[0], seg[0], sub[0], ang[0], tmp[0], acc[0],
-                         acc2[0], flag[0], terms[0], vio[0])
-                team_pass(mode, q0, nb, px[0], py[0], pz[0], uav, weights, heads, tails, mu, ref_diff, par,
-                          form[0], hit[0], rx[0], ry[0], rz[0], tmp[0], acc[0], acc2[0], flag[0], better[0],
-                          terms[0], vio[0], res[0], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
-                          vio_out, res_out)
+                _block(mode, blk * bs, min(bs, P - blk * bs), it, key, inertia, 0, shared, scratch)
         else:
             for blk in prange(n_blocks):
-                t = get_thread_id()
-                q0 = blk * bs
-                nb = min(bs, P - q0)
-                uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
-                         par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
-                         sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t],
-                         acc2[t], flag[t], terms[t], vio[t])
-                team_pass(mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff, par,
-                          form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
-                          terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
-                          vio_out, res_out)
+                _block(mode, blk * bs, min(bs, P - blk * bs), it, key, inertia, get_thread_id(), shared, scratch)
         _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)
 
 
