@@ -10,14 +10,21 @@ average before and after (the machine may be shared: say so when reporting).
 The engine's kernels are loaded (or compiled) once before the first timing; each sweep writes to
 a fresh directory, so nothing is skipped. Elapsed times run from the first task submitted to the
 last row written (the cluster's start-up is reported apart).
+
+Each round then runs the same 40 tasks once more without Dask: two plain processes, each with
+half of the tasks inline, started at the same instant: what two cores of this machine give this
+workload at best (the ceiling the Dask ratio is to be read against).
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -49,6 +56,34 @@ def concurrency(out: Path, elapsed: float) -> tuple[float, float, float]:
     return sum(wall) / len(wall), sum(wall) / elapsed, sum(cpu) / elapsed
 
 
+def part(spec_path: Path, index: int, parts: int, out: Path, at: float) -> None:
+    """Child of :func:`plain_processes`: tasks ``index::parts`` of the spec inline, starting at
+    wall-clock time ``at`` (after this process has loaded the kernels); prints the elapsed time."""
+    from staghunt.study.executor import InlineExecutor
+    from staghunt.study.spec import expand, load_spec
+    from staghunt.study.sweep import run_sweep, warm_engine
+
+    sweep = expand(*load_spec(spec_path))
+    sweep = dataclasses.replace(sweep, tasks=sweep.tasks[index::parts])
+    warm_engine(sweep)
+    time.sleep(max(0.0, at - time.time()))
+    s = run_sweep(sweep, out, InlineExecutor())
+    print(json.dumps({"done": s.done, "failed": s.failed, "elapsed_s": s.elapsed_s}))
+
+
+def plain_processes(spec_path: Path, out: Path, parts: int = 2) -> tuple[float, int]:
+    """The sweep split into ``parts`` plain processes (no Dask) started together: (elapsed time
+    of the slowest, tasks done); each process's elapsed time runs from the common start."""
+    at = time.time() + 6.0  # every child has loaded the kernels by then (about 1 s)
+    procs = [subprocess.Popen([sys.executable, __file__, "--part", str(i), str(parts), str(spec_path),
+                               str(out / f"p{i}"), repr(at)], stdout=subprocess.PIPE, text=True)
+             for i in range(parts)]
+    outs = [json.loads(p.communicate()[0].strip().splitlines()[-1]) for p in procs]
+    if any(p.returncode for p in procs):
+        raise SystemExit("a plain process failed")
+    return max(o["elapsed_s"] for o in outs), sum(o["done"] + o["failed"] for o in outs)
+
+
 def load() -> str:
     return " ".join(f"{v:.2f}" for v in os.getloadavg())
 
@@ -59,7 +94,12 @@ def main() -> None:
     ap.add_argument("--rounds", type=int, default=1, help="repeat (1 worker, then 2) this many times; "
                     "the load of a shared machine drifts (default: 1)")
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
+    ap.add_argument("--part", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    if args.part:
+        index, parts, spec_path, out, at = args.part
+        part(Path(spec_path), int(index), int(parts), Path(out), float(at))
+        return
     from staghunt.study.executor import DaskExecutor, InlineExecutor
     from staghunt.study.spec import expand, load_spec
     from staghunt.study.sweep import run_sweep, warm_engine, warm_workers
@@ -96,12 +136,19 @@ def main() -> None:
             with_startup = s1.elapsed_s / (s2.elapsed_s + startup)
             print(f"  throughput ratio 2 workers / 1 worker: {ratio:.2f}x (target >= 1.7x); "
                   f"{with_startup:.2f}x counting the cluster's start-up")
+            plain_s, plain_n = plain_processes(spec_path, Path(tmp) / f"p-{r}")
+            ceiling = (plain_n / plain_s) / s1.throughput if s1.throughput else float("nan")
+            print(f"  2 plain processes (no Dask), half of the tasks each: {plain_n} done in {plain_s:.1f} s: "
+                  f"{ceiling:.2f}x the 1-worker throughput (this machine's ceiling for the workload); "
+                  f"Dask reaches {ratio / ceiling:.0%} of it; load {load()}")
             rounds.append(dict(load_before=before, load_after=load(), workers1_s=s1.elapsed_s,
                                workers2_s=s2.elapsed_s, task1_s=mean1, task2_s=mean2, at_once1=conc1,
                                at_once2=conc2, cores1=cores1, cores2=cores2, startup_s=startup, ratio=ratio,
-                               ratio_with_startup=with_startup))
+                               ratio_with_startup=with_startup, plain2_s=plain_s, ceiling=ceiling))
     ratios = sorted(float(r["ratio"]) for r in rounds)  # type: ignore[arg-type]
-    print(f"ratio per round: {', '.join(f'{x:.2f}x' for x in ratios)}; median {statistics.median(ratios):.2f}x")
+    ceilings = sorted(float(r["ceiling"]) for r in rounds)  # type: ignore[arg-type]
+    print(f"ratio per round: {', '.join(f'{x:.2f}x' for x in ratios)}; median {statistics.median(ratios):.2f}x; "
+          f"two plain processes: median {statistics.median(ceilings):.2f}x")
     if args.json:
         Path(args.json).write_text(json.dumps({"tasks": len(sweep.tasks), "budget": budget, "rounds": rounds}, indent=2))
 

@@ -270,6 +270,12 @@ def test_interrupt_keeps_finished_runs_and_resumes(tmp_path, scenario, settings,
     assert calls == [("rigid", 2)] and report.complete
 
 
+def _profiling() -> bool:
+    import dask
+
+    return bool(dask.config.get("distributed.worker.profile.enabled"))
+
+
 def test_compare_on_a_dask_cluster_gives_the_same_runs(done, scenario, settings, tmp_path):
     """Compare's runs are tasks of the sweep's task function: on a local Dask cluster (2
     processes) they give the same plans and certificates as in-process, in the same order."""
@@ -279,6 +285,8 @@ def test_compare_on_a_dask_cluster_gives_the_same_runs(done, scenario, settings,
     with DaskExecutor(workers=2) as ex:
         report = run_compare(check_compare(scenario, METHODS4, SEEDS, settings, TINY_CERT, engine="numpy", threads=1),
                              tmp_path, executor=ex)
+        # No dashboard, so the workers' statistical profiler (100 samples a second) is off.
+        assert list(ex.client.run(_profiling).values()) == [False, False]
     assert report.complete
     here, there = strict(out / "compare.json"), strict(tmp_path / "compare.json")
     assert [(r["method"], r["seed"]) for r in there["runs"]] == [(r["method"], r["seed"]) for r in here["runs"]]

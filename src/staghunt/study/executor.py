@@ -101,6 +101,7 @@ class DaskExecutor(Generic[T, R]):
         # read when distributed is imported, here and in the (spawned) workers.
         if not os.environ.get("STAGHUNT_DEBUG"):
             os.environ.setdefault("DASK_LOGGING__DISTRIBUTED", "critical")
+        import dask
         from distributed import Client, LocalCluster
 
         if not os.environ.get("STAGHUNT_DEBUG"):
@@ -121,8 +122,11 @@ class DaskExecutor(Generic[T, R]):
             env = {"OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1",
                    "NUMBA_NUM_THREADS": "1"}
             try:
-                self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                            dashboard_address=None, env=env)
+                # No dashboard, so nobody reads the workers' statistical profiler: it would sample
+                # the task thread's stack 100 times a second, taking the GIL from the task.
+                with dask.config.set({"distributed.worker.profile.enabled": False}):
+                    self.cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                                                dashboard_address=None, env=env)
                 self.client = Client(self.cluster, set_as_default=False)
             except (OSError, TimeoutError, RuntimeError) as exc:
                 if self.cluster is not None:
