@@ -10,8 +10,8 @@ Two entry points run one block of ``nb <= B`` particles, in this order:
 
 :func:`select_global` then picks the global best. :func:`iterate` runs stretches of a swarm's
 iterations in one call (both entries over all blocks through :func:`_block`, serially or in a
-``prange`` over the blocks, then the global best), so a small swarm pays no per-block dispatch from Python and no
-Python-level barrier per iteration. Intermediate results stay in the block's
+``prange`` over the blocks, then the global best), so a small swarm pays no per-block dispatch
+from Python and no Python-level barrier per iteration. Intermediate results stay in the block's
 scratch arrays (:class:`staghunt.engine.scratch.Scratch`). Callers bind the arrays by these
 kernels' parameter names (:func:`staghunt.engine.arrays.kernel_args`), so each definition below is
 the one place that spells its argument order. The parts of each entry are
