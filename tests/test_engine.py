@@ -455,7 +455,7 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
             ma.ref_diff, sa.players, run.pcost, run.pviol, run.cost, run.viol, run.J, extra.gcost, extra.history,
             extra.rhistory, extra.hviol, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1,
             w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit, w.rx, w.ry,
-            w.rz, w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out)
+            w.rz, w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
     for kernel, sources, per_call, expected in (
             (kn.uav_pass, (run, ma, sa, w), UAV_PASS_PER_CALL, uav),
             (kn.team_pass, (run, ma, sa, w), TEAM_PASS_PER_CALL, team),
@@ -464,6 +464,35 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
         assert len(bound) == len(expected) and all(a is b for a, b in zip(bound, expected)), kernel.__name__
     with pytest.raises(TypeError, match="does not start with"):
         kernel_args(kn.team_pass, run, ma, sa, w, per_call=("q0",))
+
+
+def test_callers_reach_the_kernel_entries_through_their_addresses(monkeypatch):
+    """``iterate`` and ``polish`` call the two entries through the table of their compiled code
+    (engine.jit.entry_call): one row per overload, keyed by its signature's fingerprint; a table
+    without the caller's signature stops the run with a clear error (from the serial loop, the
+    parallel one and the polish), never a jump to a wrong address."""
+    from staghunt.engine.jit import entry_table, signature_fingerprint
+    from staghunt.engine.numba_engine import _Pass, prepare
+    from staghunt.solvers.game import polish
+
+    prepare()
+    for entry in (kn.uav_pass, kn.team_pass):
+        table = entry_table(entry)
+        assert table.dtype == np.int64 and table.shape == (len(entry.overloads), 2)
+        assert sorted(table[:, 0]) == sorted(signature_fingerprint(sig) for sig in entry.overloads)
+        assert np.all(table[:, 1] != 0)
+        assert entry_table(entry) is table  # made again only when the entry gains an overload
+    model = CostModel.from_scenario(load_scenario("scenario2"))
+    problem = team_problem(model, 4, 0.5)
+    plan_ = plan(load_scenario("scenario2"), method="paper", seed=1,
+                 settings=SolverSettings(particles=40, iterations=5, waypoints=4)).waypoints
+    monkeypatch.setattr(_Pass, "team_entries", property(lambda self: np.zeros((0, 2), dtype=np.int64)))
+    for threads, particles in ((1, 16), (2, 256)):
+        with pytest.raises(RuntimeError, match="no compiled team_pass"):
+            NumbaEngine(threads=threads).run_swarm(problem, SolverSettings(particles=particles, iterations=2,
+                                                                         waypoints=4), np.random.default_rng(0))
+    with pytest.raises(RuntimeError, match="no compiled team_pass"):
+        polish(model, np.array(plan_), 0, 100, NumbaEngine(threads=1).evaluate)
 
 
 def test_named_columns_fill_the_kernel_rows():

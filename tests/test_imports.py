@@ -136,3 +136,20 @@ def test_the_layer_check_finds_upward_imports():
 def test_the_cycle_finder_finds_cycles():
     assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
     assert cycles({"a": {"b"}, "b": set()}) == []
+
+
+def test_planning_leaves_the_simulator_unloaded():
+    """``import staghunt``, the CLI's parser and the compiled engine do not load the simulator,
+    TOPP-RA or Matplotlib (0.7 s and about 70 MB that only ``fly``, ``export`` and the figures
+    need; the compile helper imports the engine too); ``staghunt.fly`` loads it on first use."""
+    import subprocess
+    import sys
+
+    code = ("import sys, staghunt, staghunt.cli, staghunt.engine.numba_engine\n"
+            "staghunt.cli.build_parser()\n"
+            "loaded = [m for m in ('staghunt.flight', 'rotorpy', 'toppra', 'matplotlib') if m in sys.modules]\n"
+            "assert not loaded, loaded\n"
+            "assert callable(staghunt.fly) and 'staghunt.flight' in sys.modules\n"
+            "from staghunt.missions import export_result, FORMATS\n"
+            "assert export_result.__module__ == 'staghunt.missions.export' and len(FORMATS) == 7\n")
+    subprocess.run([sys.executable, "-c", code], check=True)

@@ -19,7 +19,6 @@ from staghunt.cli.common import (
     EXIT_INTERRUPTED, EXIT_NEGATIVE, EXIT_OK, EXIT_USAGE, PROG, add_plots_option, add_run_options, add_seed_option,
     check_out_dir, command, engine_kwargs, int_at_least, number_between, one_line, os_reason, path_argument, say,
 )
-from staghunt.flight import FlyConfig, check_flight, fly
 from staghunt.inputs import clip
 from staghunt.io.flight_files import latency_summary, write_flight
 
@@ -55,6 +54,8 @@ def cmd_fly(args: argparse.Namespace) -> int:
     replans.json, flight.json (metrics), figures, flight.gif and replay.html (an offline 3-D
     replay). Events: docs/scenario-format.md.
     """
+    from staghunt.flight import FlyConfig, check_flight, fly  # the simulator: only for this command
+
     out_dir = Path(args.out)
     check_out_dir(out_dir, "flight.json")
     changes = {"latency_budget": args.latency, "replan_particles": args.replan_particles,

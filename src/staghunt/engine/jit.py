@@ -1,12 +1,16 @@
-"""``subroutine``: compile a function straight into its caller's machine code.
+"""Two ways to compile a large piece of the kernel once instead of once per caller.
 
 A function decorated with ``numba.njit`` is compiled on its own (with a Python wrapper and its
 own machine code) and then compiled *again* inside every jitted caller, whose module links and
-re-optimises it. For the few large sections of the kernel that doubles the one-time compile.
-A subroutine is typed and lowered only as part of its caller (through Numba's own mechanism for
-internal helpers, ``BaseContext.compile_subroutine``), so its code is optimised and emitted
-once, and it is cached with the caller (``cache=True`` on the caller). It cannot be called
-from Python.
+re-optimises it. For the large sections of the kernel that multiplies the one-time compile.
+
+- ``subroutine``: a function used by one caller only is typed and lowered only as part of that
+  caller (through Numba's own mechanism for internal helpers,
+  ``BaseContext.compile_subroutine``), so its code is optimised and emitted once, and it is
+  cached with the caller (``cache=True`` on the caller). It cannot be called from Python.
+- ``entry_call``: an ``njit`` entry that Python and several jitted callers all call is called
+  from the jitted ones through its address, found at run time in a table of its compiled code
+  (``entry_table``), so that no caller links or re-optimises it.
 """
 
 from __future__ import annotations
@@ -42,3 +46,86 @@ def subroutine(fn: Callable[..., None]) -> Any:
     typer.__doc__ = fn.__doc__
     typer.__module__ = fn.__module__
     return intrinsic(typer)
+
+
+def entry_call(dispatcher: Any) -> Any:
+    """An intrinsic ``call(entries, probe, *args)`` that runs ``dispatcher``'s compiled code for
+    ``args`` through its address, looked up at run time in ``entries`` (:func:`entry_table`);
+    with ``probe`` true it only looks the address up.
+
+    A caller that calls an ``njit`` function directly links that function's code into its own
+    module and optimises it again there; for the two large kernel entries that tripled the
+    one-time compile of the callers. Through its address, the callee is compiled (and cached)
+    once, on its own, and every caller is compiled without it; the call itself costs what a
+    direct call does (measured: see ``benchmarks/README.md``). The callee is compiled for the
+    call's argument types (literals made plain) when the caller is; the caller keeps its
+    fingerprint and, at run time, raises ``RuntimeError`` if ``entries`` has no code for it (a
+    parallel loop does not pass an exception on reliably: probe once before it). The address is
+    an argument, never a constant, so a cached caller stays valid in a new process. With
+    ``NUMBA_DISABLE_JIT=1`` the plain function is called."""
+    if config.DISABLE_JIT:
+        return lambda entries, probe, *args: None if probe else dispatcher(*args)
+    from llvmlite import ir
+    from numba.core import cgutils
+
+    def find(entries: Any, fingerprint: int) -> int:
+        for i in range(entries.shape[0]):
+            if entries[i, 0] == fingerprint:
+                return entries[i, 1]
+        return 0
+
+    def typer(typingctx: Any, entries: Any, probe: Any, *args: Any) -> Any:  # noqa: ARG001
+        argtys = tuple(types.unliteral(a) for a in args)
+        dispatcher.compile(argtys)
+        fingerprint = signature_fingerprint(argtys)
+        message = f"staghunt.engine: no compiled {dispatcher.__name__} for the caller's argument types"
+
+        def codegen(context: Any, builder: Any, signature: Any, llargs: Any) -> Any:
+            table, values = llargs[0], llargs[2:]
+            only_probe = context.cast(builder, llargs[1], signature.args[1], types.boolean)
+            values = [context.cast(builder, v, t, u) for v, t, u in zip(values, signature.args[2:], argtys)]
+            i64 = ir.IntType(64)
+            address = context.compile_internal(builder, find, types.int64(entries, types.int64),
+                                               [table, ir.Constant(i64, fingerprint)])
+            with builder.if_then(builder.icmp_unsigned("==", address, ir.Constant(i64, 0)), likely=False):
+                context.call_conv.return_user_exc(builder, RuntimeError, (message,))
+            with builder.if_then(builder.not_(only_probe), likely=True):
+                fnty = context.call_conv.get_function_type(types.none, argtys)
+                status, _ = context.call_conv.call_function(builder, builder.inttoptr(address, fnty.as_pointer()),
+                                                            types.none, argtys, values)
+                with cgutils.if_unlikely(builder, status.is_error):
+                    context.call_conv.return_status_propagate(builder, status)
+            return context.get_dummy_value()
+
+        return types.none(entries, probe, *args), codegen
+
+    names = ", ".join(inspect.signature(dispatcher.py_func).parameters)
+    namespace: dict[str, Any] = {"typer": typer}
+    exec(f"def {dispatcher.__name__}_by_address(typingctx, entries, probe, {names}):\n"
+         f"    return typer(typingctx, entries, probe, {names})\n", namespace)
+    return intrinsic(namespace[f"{dispatcher.__name__}_by_address"])
+
+
+def signature_fingerprint(argtys: tuple[Any, ...]) -> int:
+    """A fingerprint of a tuple of Numba types, the same in every process (CRC-32 of its text)."""
+    import zlib
+
+    return zlib.crc32(str(tuple(argtys)).encode())
+
+
+_TABLES: dict[int, tuple[int, Any]] = {}
+
+
+def entry_table(dispatcher: Any) -> Any:
+    """``(M, 2)`` int64: ``(signature fingerprint, address)`` of each of ``dispatcher``'s compiled
+    overloads, for :func:`entry_call` (remade when it gains one)."""
+    import numpy as np
+
+    overloads = getattr(dispatcher, "overloads", {})
+    known = _TABLES.get(id(dispatcher))
+    if known is None or known[0] != len(overloads):
+        rows = [(signature_fingerprint(sig), cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name))
+                for sig, cres in list(overloads.items())]
+        table = np.array(rows, dtype=np.int64).reshape(-1, 2)
+        known = _TABLES[id(dispatcher)] = (len(overloads), table)
+    return known[1]

@@ -49,7 +49,7 @@ import math
 import numpy as np
 from numba import get_thread_id, njit, prange
 
-from staghunt.engine.jit import subroutine
+from staghunt.engine.jit import entry_call, subroutine
 
 from staghunt.engine.fastmath import (
     DECISION_TOL,
@@ -959,6 +959,13 @@ def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff
         _bests(mode, q0, nb, X, PB, pcost, pviol, cost, viol, J, players, par, solo, vio, res, tmp, acc, better)
 
 
+_uav_pass = entry_call(uav_pass)
+_team_pass = entry_call(team_pass)
+"""The two entries as :func:`iterate` and :func:`polish` call them: through their addresses in
+``uav_entries`` and ``team_entries`` (:func:`staghunt.engine.jit.entry_call`), so that neither
+caller compiles them again inside itself."""
+
+
 @njit(cache=True, nogil=True, error_model="numpy")
 def select_global(cost: np.ndarray, viol: np.ndarray, gcost: np.ndarray, gviol: float, masked: bool) -> int:
     """The new global best among the allocations that dominate ``(gcost, gviol)`` (all if not
@@ -1014,23 +1021,25 @@ def _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)
 
 
 @subroutine
-def _block(mode, q0, nb, it, key, inertia, t, shared, scratch) -> None:  # noqa: ANN001
+def _block(mode, q0, nb, it, key, inertia, t, shared, scratch, probe) -> None:  # noqa: ANN001
     """Both entries on particles ``q0 .. q0+nb`` of :func:`iterate`'s swarm, on thread ``t``'s
     scratch: the one place where ``iterate`` spells their arguments (``shared``: the run's,
     model's and swarm's arrays; ``scratch``: the per-thread arrays, thread axis first, in the
-    order :func:`iterate` packs them)."""
+    order :func:`iterate` packs them). With ``probe``, only check that ``shared``'s entry tables
+    hold both entries' code (else ``RuntimeError``)."""
     (X, V, PB, gbest, initial, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights,
-     heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out) = shared
+     heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out, uav_entries,
+     team_entries) = shared
     (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
      terms, vio, form, hit, rx, ry, rz, better, res) = scratch
-    uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,
-             par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t], sty[t], sth[t],
-             prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t], acc2[t], flag[t], terms[t],
-             vio[t])
-    team_pass(mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff, par,
-              form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
-              terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
-              vio_out, res_out)
+    _uav_pass(uav_entries, probe, mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member,
+              offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
+              sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t], acc2[t],
+              flag[t], terms[t], vio[t])
+    _team_pass(team_entries, probe, mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff,
+               par, form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
+               terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
+               vio_out, res_out)
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
@@ -1038,7 +1047,8 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
             par, uav, cyl, prm, pedge, grid, weights, heads, tails, mu, ref_diff, players,
             pcost, pviol, cost, viol, J, gcost, history, rhistory, hviol,
             sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-            terms, vio, form, hit, rx, ry, rz, better, res, wp, terms_out, vio_out, res_out) -> None:
+            terms, vio, form, hit, rx, ry, rz, better, res, wp, terms_out, vio_out, res_out, uav_entries,
+            team_entries) -> None:
     """Iterations ``it0 .. it1-1`` of a swarm run in one call (iteration 0: the initial draw),
     each over all particles in blocks of ``bs``, then the global best, the histories
     ``history (I+1, C)``, ``rhistory (I+1, N)``, ``hviol (I+1,)`` and the inertia's damping
@@ -1051,18 +1061,21 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
     P = X.shape[3]
     n_blocks = (P + bs - 1) // bs
     shared = (X, V, PB, gbest, initial, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights,
-              heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out)
+              heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out,
+              uav_entries, team_entries)
     scratch = (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
                terms, vio, form, hit, rx, ry, rz, better, res)
+    _block(MODE_STEP, 0, 0, it0, key, 0.0, 0, shared, scratch, True)  # raises here, not in the loop
     for it in range(it0, it1):
         mode = MODE_INIT if it == 0 else MODE_STEP
         inertia = state[0]
         if serial:
             for blk in range(n_blocks):
-                _block(mode, blk * bs, min(bs, P - blk * bs), it, key, inertia, 0, shared, scratch)
+                _block(mode, blk * bs, min(bs, P - blk * bs), it, key, inertia, 0, shared, scratch, False)
         else:
             for blk in prange(n_blocks):
-                _block(mode, blk * bs, min(bs, P - blk * bs), it, key, inertia, get_thread_id(), shared, scratch)
+                _block(mode, blk * bs, min(bs, P - blk * bs), it, key, inertia, get_thread_id(), shared, scratch,
+                       False)
         _global(it, state, X, gbest, cost, viol, J, gcost, history, rhistory, hviol)
 
 
@@ -1085,7 +1098,7 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
            sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights, heads, tails, mu,
            ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out, vio_out,
            res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2,
-           flag, terms, vio, form, hit, rx, ry, rz, better, res):
+           flag, terms, vio, form, hit, rx, ry, rz, better, res, uav_entries, team_entries):
     """The twin of :func:`staghunt.solvers.game.polish` on UAV ``n``'s deviations in one call:
     a pattern search from ``path (K, 3)`` (cost ``J0``) that moves one coordinate by
     ``+-step`` per candidate (``6 K`` of them, rows ``0 .. 6K-1`` of ``wp``, whose other UAVs'
@@ -1123,12 +1136,12 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
                 _candidate(best, i, -1.0, step, lower, upper, wp[M + i, n])
         for q0 in range(r0, r1, B):
             nb = min(B, r1 - q0)
-            uav_pass(MODE_DEVIATE, q0, nb, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial, sw, member, offsets,
-                     fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx, sty, sth, prev, bits1,
-                     bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
-            team_pass(MODE_DEVIATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, form, hit,
-                      rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB, pcost, pviol, cost, viol,
-                      J, players, terms_out, vio_out, res_out)
+            _uav_pass(uav_entries, False, MODE_DEVIATE, q0, nb, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial,
+                      sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx,
+                      sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
+            _team_pass(team_entries, False, MODE_DEVIATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu,
+                       ref_diff, par, form, hit, rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB,
+                       pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out)
         spent += r1 - r0
         if combine:  # the combination or the best single move, whichever is cheaper
             combine = False

@@ -10,8 +10,8 @@ Compilation: the kernels are compiled on first use and cached on disk (``cache=T
 cache location rules apply, e.g. ``NUMBA_CACHE_DIR``). :func:`prepare` does it explicitly. When
 the cache is cold it says so once through ``notify`` (default: a ``logging`` warning on
 ``staghunt.engine``, which reaches stderr even when logging is not configured) and compiles the
-two kernel entry points in two processes at once (this one and a helper subprocess writing
-to the same cache), which roughly halves the wait on a 2-core machine.
+kernel entry points in two processes at once (this one and a helper subprocess writing to the
+same cache), which roughly halves the wait on a 2-core machine.
 """
 
 from __future__ import annotations
@@ -32,6 +32,7 @@ import numpy as np
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import ModelArrays, SwarmArrays, kernel_args, model_arrays, no_swarm, swarm_arrays
+from staghunt.engine.jit import entry_table
 from staghunt.engine.loop import (
     CHUNK_ITERATIONS,
     MIN_SHARED_PARTICLES,
@@ -50,18 +51,19 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger("staghunt.engine")
 
-COLD_COMPILE_ESTIMATE_S = 60
-"""Announced one-time compile (measured 12.7 s in two processes before the compiled iteration
-loop ``iterate``, which re-optimises both kernel entries inside it; with it 77-98 s on the 2-core
-machine of issue 17 at load 3.5-4.6, about 43 s of CPU for ``iterate`` alone; see
-``benchmarks/README.md``)."""
+COLD_COMPILE_ESTIMATE_S = 20
+"""Announced one-time compile: 16-17 s in two processes, 28 s in one, on a quiet 2-core VM
+(``uav_pass`` 10 s, ``team_pass`` 7 s, ``iterate`` 6 s, ``polish`` 4.5 s; 43 s and 63 s while
+``iterate`` and ``polish`` compiled both entries again inside them; ``benchmarks/README.md``)."""
 
 NOTIFY_AFTER_S = 1.0
 """When the cache index cannot be read: loading every kernel from a warm cache takes well under
 this; beyond it we are compiling."""
 
-HELPER_ENTRIES = ("uav_pass",)
-"""Entry points the helper subprocess compiles while this process compiles the others."""
+HELPER_PHASES = (("uav_pass",), ("polish",))
+"""What the helper subprocess compiles, in turn, while this process compiles the others: after
+each phase it writes a line to its stdout (``iterate`` and ``polish`` call both entries, and
+start once ``uav_pass`` is in the cache)."""
 
 _ready = threading.Event()
 _prepare_lock = threading.Lock()
@@ -104,6 +106,17 @@ class _Pass:
         self.mode, self.it, self.key, self.inertia = kn.MODE_INIT, 0, np.uint64(0), 0.0
         self._bound: dict[int, tuple[Any, ...]] = {}
 
+    @property
+    def uav_entries(self) -> np.ndarray:
+        """``uav_pass``'s compiled code, as :func:`kernels.iterate` and :func:`kernels.polish` call it
+        (:func:`staghunt.engine.jit.entry_table`)."""
+        return entry_table(kn.uav_pass)
+
+    @property
+    def team_entries(self) -> np.ndarray:
+        """``team_pass``'s compiled code, likewise."""
+        return entry_table(kn.team_pass)
+
     def ensure_scratch(self, threads: int) -> None:
         """Borrow block buffers for ``threads`` threads from the pool (see :meth:`release`)."""
         if len(self.scratch) < threads:
@@ -136,10 +149,8 @@ class _Pass:
 
 
 ENTRIES = ("uav_pass", "team_pass", "select_global", "iterate", "polish")
-"""Compiled entry points; ``iterate`` calls the first three and ``polish`` the first two (they are
-compiled last, side by side, once those are in the cache)."""
-LATE_HELPER_ENTRIES = ("polish",)
-"""Entry points a second helper subprocess compiles while this process compiles ``iterate``."""
+"""Compiled entry points; ``iterate`` calls the first three and ``polish`` the first two (through
+the entries' addresses: :func:`staghunt.engine.jit.entry_call`)."""
 
 
 def _tiny(entries: Iterable[str]) -> None:
@@ -176,7 +187,8 @@ def _tiny(entries: Iterable[str]) -> None:
     run = _Pass(ma, sa, N, K, N, N, P)
     run.ensure_scratch(1)
     names = list(entries)
-    kernel_names = [e for e in names if e != "select_global"]
+    callers = "iterate" in names or "polish" in names  # they call both entries: load them here first
+    kernel_names = [e for e in ("uav_pass", "team_pass") if e in names or callers]
     if kernel_names:
         run.block(0, P, 0, kernel_names)
     if "select_global" in names:
@@ -207,20 +219,25 @@ def _cache_is_warm() -> bool | None:
         return None
 
 
-def _compile_part(names: str) -> None:
-    """Entry point of the helper subprocess: compile the comma-separated kernel entries."""
-    _tiny(names.split(","))
+def _compile_part(phases: str) -> None:
+    """Entry point of the helper subprocess: compile the kernel entries of each phase
+    (``uav_pass;polish``: phases separated by ``;``, entries by ``,``), writing the phase's
+    entries to stdout once they are in the cache."""
+    for phase in phases.split(";"):
+        _tiny(phase.split(","))
+        print(phase, flush=True)
 
 
-def _spawn_helper(entries: Iterable[str]) -> subprocess.Popen[bytes] | None:
-    """Start a subprocess compiling ``entries`` into the shared cache (``None`` if it cannot start)."""
+def _spawn_helper(phases: Iterable[Iterable[str]]) -> subprocess.Popen[bytes] | None:
+    """Start a subprocess compiling ``phases`` into the shared cache (``None`` if it cannot start)."""
     env = dict(os.environ)
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # src/
     env["PYTHONPATH"] = root + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    code = f"from staghunt.engine.numba_engine import _compile_part; _compile_part({','.join(entries)!r})"
+    spec = ";".join(",".join(phase) for phase in phases)
+    code = f"from staghunt.engine.numba_engine import _compile_part; _compile_part({spec!r})"
     try:
         return subprocess.Popen([sys.executable, "-c", code], env=env,
-                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                                stdout=subprocess.PIPE, stderr=subprocess.DEVNULL)
     except OSError:
         return None
 
@@ -231,8 +248,9 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
     On a cold cache (Numba's cache index lacks an entry, or, if the index cannot be read,
     loading takes longer than :data:`NOTIFY_AFTER_S`), ``notify`` (default: a warning on the
     ``staghunt.engine`` logger) is called once with a message saying what happens, and, with
-    ``parallel``, a helper subprocess compiles :data:`HELPER_ENTRIES` into the shared cache
-    meanwhile. If the helper fails, this process compiles everything itself.
+    ``parallel``, a helper subprocess compiles :data:`HELPER_PHASES` into the shared cache
+    meanwhile: ``uav_pass`` while this process compiles ``team_pass``, then ``polish`` while
+    this process compiles ``iterate``. If the helper fails, this process compiles what is left.
     """
     if _ready.is_set():
         return 0.0
@@ -242,7 +260,7 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
         say = notify if notify is not None else logger.warning
         t0 = time.perf_counter()
         errors: list[BaseException] = []
-        main_entries = [e for e in ENTRIES if e not in HELPER_ENTRIES and e not in ("iterate", "polish")]
+        main_entries = [e for e in ENTRIES if e not in ("uav_pass", "iterate", "polish")]
 
         def target() -> None:
             try:
@@ -262,25 +280,22 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
                 f"{COLD_COMPILE_ESTIMATE_S} s; later runs load it from the cache)..."
             )
             if parallel and usable_cores() > 1:
-                helper = _spawn_helper(HELPER_ENTRIES)
+                helper = _spawn_helper(HELPER_PHASES)
         worker.join()
+        if errors:
+            if helper is not None:
+                helper.kill()
+            raise errors[0]
+        if helper is not None and helper.stdout is not None:
+            helper.stdout.readline()  # uav_pass is in the cache (or the helper ended: compiled here)
+        _tiny([e for e in ENTRIES if helper is None or e != "polish"])
         if helper is not None:
             try:
-                helper.wait(timeout=600)
+                helper.communicate(timeout=600)
             except subprocess.TimeoutExpired:
                 helper.kill()
-        if errors:
-            raise errors[0]
-        late = None  # the last entries (both re-optimise the two kernels inside them) side by side
-        if helper is not None:
-            late = _spawn_helper(LATE_HELPER_ENTRIES)
-        _tiny([e for e in ENTRIES if late is None or e not in LATE_HELPER_ENTRIES])
-        if late is not None:
-            try:
-                late.wait(timeout=600)
-            except subprocess.TimeoutExpired:
-                late.kill()
-            _tiny(LATE_HELPER_ENTRIES)  # loads the helper's work (or compiles it here if it failed)
+                helper.communicate()
+            _tiny(["polish"])  # loads the helper's work (or compiles it here if it failed)
         _ready.set()
         return time.perf_counter() - t0
 

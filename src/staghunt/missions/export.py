@@ -39,9 +39,7 @@ from staghunt.io.atomic import write_file_set
 from staghunt.missions import formats as fm
 from staghunt.trajectory import SafetyReport, Trajectories, time_and_check
 
-FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories")
-"""``plan`` (QGroundControl), ``waypoints`` (QGC WPL 110), ``kmz`` (DJI WPML), ``litchi``
-(Litchi CSV): one file per UAV; ``kml``, ``geojson``, ``trajectories`` (CSV): one per team."""
+FORMATS = fm.FORMATS
 
 
 class ExportRefused(FieldError):

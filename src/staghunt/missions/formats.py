@@ -36,6 +36,10 @@ import numpy as np
 
 from staghunt.errors import FieldError
 
+FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories")
+"""``plan`` (QGroundControl), ``waypoints`` (QGC WPL 110), ``kmz`` (DJI WPML), ``litchi``
+(Litchi CSV): one file per UAV; ``kml``, ``geojson``, ``trajectories`` (CSV): one per team."""
+
 QGC_WAYPOINT = 16
 QGC_LAND = 21
 QGC_TAKEOFF = 22
