@@ -447,15 +447,15 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
            ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
            w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio)
     team = (w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, ma.par, w.form, w.hit,
-            w.rx, w.ry, w.rz, w.tmp, w.acc, w.acc2, w.flag, w.better, w.terms, w.vio, w.res, run.X, run.PB,
+            w.tmp, w.acc, w.acc2, w.flag, w.better, w.terms, w.vio, w.res, run.X, run.PB,
             run.pcost, run.pviol, run.cost, run.viol, run.J, sa.players, run.terms_out, run.vio_out, run.res_out)
     extra = _RunState(np.uint64(1), np.zeros(3), np.zeros((1, 1)), np.zeros((2, 1)), np.zeros((2, N)), np.zeros(2))
     loop = (extra.key, extra.state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets,
             sa.fixed, ma.par, ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, ma.weights, ma.heads, ma.tails, ma.mu,
             ma.ref_diff, sa.players, run.pcost, run.pviol, run.cost, run.viol, run.J, extra.gcost, extra.history,
             extra.rhistory, extra.hviol, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1,
-            w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit, w.rx, w.ry,
-            w.rz, w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
+            w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit,
+            w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
     for kernel, sources, per_call, expected in (
             (kn.uav_pass, (run, ma, sa, w), UAV_PASS_PER_CALL, uav),
             (kn.team_pass, (run, ma, sa, w), TEAM_PASS_PER_CALL, team),

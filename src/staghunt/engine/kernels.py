@@ -523,17 +523,16 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, prm, pedge, par, seg, sub, ang, 
 
 @subroutine
 def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, every, players,  # noqa: ANN001
-                form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res) -> None:
+                form, hit, tmp, acc, acc2, flag, terms, vio, res) -> None:
     """Formation cost and separation for the whole team (:mod:`staghunt.costs.formation`), then
     ``J_s``, ``J_f``, ``J_n`` (:func:`staghunt.costs.evaluate`).
 
     Writes ``vio[:, 2]`` (separation deficit) and ``res (3, N, B)`` = ``J_f``, ``J_s``, ``J_n``.
     Scratch: ``form (3, N, S, B)`` = ``E`` (eq. 5), nearest squared distance at the waypoints,
-    along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments; ``rx``,
-    ``ry``, ``rz`` ``(K+2, B)`` relative positions of a pair; ``tmp (>= S, B)``; ``acc``,
-    ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a pair's segments whose
-    bounding boxes over the block's lanes lie farther apart than its separation limit are
-    skipped (exact; see the comment in the body). With ``solo`` (a problem with
+    along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments;
+    ``tmp (>= S, B)``; ``acc``, ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a
+    pair's segments whose bounding boxes over the block's lanes lie farther apart than its
+    separation limit are skipped (exact; see the comment in the body). With ``solo`` (a problem with
     fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``
     (``every``: the collisions of all UAVs, from those pairs), and pairs are pruned at any N.
     """
@@ -578,93 +577,96 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             _fill(near2[n, j], nb, np.inf)
             _fill(seg2[n, j], nb, np.inf)
     # Pruning past small N: per UAV and segment, the bounding box of the segment over the
-    # block's lanes. A pair whose boxes on segment j are farther apart than its separation limit
-    # (plus a guard) is farther apart than the limit all along that segment in every lane, so
-    # its distances there cannot make a collision or a deficit: they are skipped (an entry of
-    # ``near2``/``seg2`` may then stay above its true value, but only where both exceed every
-    # limit, which decides nothing). Exact: the same collisions, deficits and J_f.
+    # block's lanes (the union of its ends' boxes, each waypoint's made once). A pair whose
+    # boxes on segment j are farther apart than its separation limit (plus a guard) is farther
+    # apart than the limit all along that segment in every lane, so its distances there cannot
+    # make a collision or a deficit: they are skipped (an entry of ``near2``/``seg2`` may then
+    # stay above its true value, but only where both exceed every limit, which decides
+    # nothing). Exact: the same collisions, deficits and J_f.
     prune = N > PRUNE_MIN_UAVS or solo
     box = np.empty((6, N, S)) if prune else np.empty((6, 1, 1))
-    near = np.ones(S, dtype=np.bool_)
+    near = np.ones(S, dtype=np.int64)
     if prune:
+        point = np.empty((6, K + 2))  # one UAV's box of each waypoint over the lanes
         for n in range(N):
             # With ``solo`` a UAV other than the players has one fixed path in every lane.
             lanes = nb if not solo or _is_player(players, n) else min(nb, 1)
-            for j in range(S):
+            for i in range(K + 2):
                 x0 = np.inf
                 x1 = -np.inf
                 y0 = np.inf
                 y1 = -np.inf
                 z0 = np.inf
                 z1 = -np.inf
-                for i in range(j, j + 2):
-                    for b in range(lanes):
-                        x0 = min(x0, px[n, i, b])
-                        x1 = max(x1, px[n, i, b])
-                        y0 = min(y0, py[n, i, b])
-                        y1 = max(y1, py[n, i, b])
-                        z0 = min(z0, pz[n, i, b])
-                        z1 = max(z1, pz[n, i, b])
-                box[0, n, j] = x0
-                box[1, n, j] = x1
-                box[2, n, j] = y0
-                box[3, n, j] = y1
-                box[4, n, j] = z0
-                box[5, n, j] = z1
+                for b in range(lanes):
+                    x0 = min(x0, px[n, i, b])
+                    x1 = max(x1, px[n, i, b])
+                    y0 = min(y0, py[n, i, b])
+                    y1 = max(y1, py[n, i, b])
+                    z0 = min(z0, pz[n, i, b])
+                    z1 = max(z1, pz[n, i, b])
+                point[0, i] = x0
+                point[1, i] = x1
+                point[2, i] = y0
+                point[3, i] = y1
+                point[4, i] = z0
+                point[5, i] = z1
+            for j in range(S):
+                for q in range(0, 6, 2):
+                    box[q, n, j] = min(point[q, j], point[q, j + 1])
+                    box[q + 1, n, j] = max(point[q + 1, j], point[q + 1, j + 1])
     for a in range(N):
         for c in range(a + 1, N):
             if solo and not (_is_player(players, a) or _is_player(players, c)):
                 continue
             if prune:
                 reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
-                any_near = False
+                n_near = 0
                 for j in range(S):
                     g = max(max(box[0, c, j] - box[1, a, j], box[0, a, j] - box[1, c, j]),
                             max(max(box[2, c, j] - box[3, a, j], box[2, a, j] - box[3, c, j]),
                                 max(box[4, c, j] - box[5, a, j], box[4, a, j] - box[5, c, j])))
-                    near[j] = not (g > reach)
-                    any_near = any_near or near[j]
-                if not any_near:
+                    k = 0 if g > reach else 1
+                    near[j] = k
+                    n_near += k
+                if n_near == 0:
                     continue
-            for j in range(K + 2):  # relative positions p_a - p_c (NumPy's ``rel``)
-                for b in range(nb):
-                    rx[j, b] = px[a, j, b] - px[c, j, b]
-                for b in range(nb):
-                    ry[j, b] = py[a, j, b] - py[c, j, b]
-                for b in range(nb):
-                    rz[j, b] = pz[a, j, b] - pz[c, j, b]
-            for k in range(K):
-                if not near[k]:  # free waypoint k + 1 ends segment k
-                    continue
-                for b in range(nb):
-                    tmp[k, b] = (rx[k + 1, b] * rx[k + 1, b] + ry[k + 1, b] * ry[k + 1, b]) + rz[k + 1, b] * rz[k + 1, b]
-                for b in range(nb):
-                    near2[a, k, b] = min(near2[a, k, b], tmp[k, b])
-                for b in range(nb):
-                    near2[c, k, b] = min(near2[c, k, b], tmp[k, b])
-            if not continuous:
-                continue
+            # Segment j of the pair, lane by lane: the relative positions p_a - p_c (NumPy's
+            # ``rel``) at its ends, the squared distance at its end (free waypoint j + 1, for
+            # j < K) and, with ``continuous``, along it; one pass, no stored relative positions.
+            dw = tmp[0]
+            ds = tmp[1]
             for j in range(S):
-                if not near[j]:
+                if near[j] == 0 or not (continuous or j < K):
                     continue
                 for b in range(nb):
-                    x0 = rx[j, b]
-                    y0 = ry[j, b]
-                    z0 = rz[j, b]
-                    drx = rx[j + 1, b] - x0
-                    dry = ry[j + 1, b] - y0
-                    drz = rz[j + 1, b] - z0
+                    x0 = px[a, j, b] - px[c, j, b]
+                    y0 = py[a, j, b] - py[c, j, b]
+                    z0 = pz[a, j, b] - pz[c, j, b]
+                    x1 = px[a, j + 1, b] - px[c, j + 1, b]
+                    y1 = py[a, j + 1, b] - py[c, j + 1, b]
+                    z1 = pz[a, j + 1, b] - pz[c, j + 1, b]
+                    dw[b] = (x1 * x1 + y1 * y1) + z1 * z1
+                    drx = x1 - x0
+                    dry = y1 - y0
+                    drz = z1 - z0
                     dd = (drx * drx + dry * dry) + drz * drz
                     t = (-((x0 * drx + y0 * dry) + z0 * drz)) / dd
                     t = min(max(t, 0.0), 1.0) if dd > 0.0 else 0.0
                     clx = x0 + t * drx
                     cly = y0 + t * dry
                     clz = z0 + t * drz
-                    tmp[j, b] = (clx * clx + cly * cly) + clz * clz
-                for b in range(nb):
-                    seg2[a, j, b] = min(seg2[a, j, b], tmp[j, b])
-                for b in range(nb):
-                    seg2[c, j, b] = min(seg2[c, j, b], tmp[j, b])
+                    ds[b] = (clx * clx + cly * cly) + clz * clz
+                if j < K:
+                    for b in range(nb):
+                        near2[a, j, b] = min(near2[a, j, b], dw[b])
+                    for b in range(nb):
+                        near2[c, j, b] = min(near2[c, j, b], dw[b])
+                if continuous:
+                    for b in range(nb):
+                        seg2[a, j, b] = min(seg2[a, j, b], ds[b])
+                    for b in range(nb):
+                        seg2[c, j, b] = min(seg2[c, j, b], ds[b])
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
@@ -941,7 +943,7 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  # noqa: ANN001
-               form, hit, rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res,
+               form, hit, tmp, acc, acc2, flag, better, terms, vio, res,
                X, PB, pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out) -> None:
     """Entry 2: formation cost, separation, ``J_n`` for a block; then the compared costs and
     personal bests of particles ``q0 .. q0+nb`` (``MODE_INIT``, ``MODE_STEP``) or the twin's
@@ -952,7 +954,7 @@ def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff
     when the full evaluation's is), but only the players' ``J`` are meaningful."""
     solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
     _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, mode == MODE_DEVIATE,
-                players, form, hit, rx, ry, rz, tmp, acc, acc2, flag, terms, vio, res)
+                players, form, hit, tmp, acc, acc2, flag, terms, vio, res)
     if mode >= MODE_EVALUATE:
         _store(q0, nb, terms, vio, res, terms_out, vio_out, res_out)
     else:
@@ -1031,13 +1033,13 @@ def _block(mode, q0, nb, it, key, inertia, t, shared, scratch, probe) -> None:  
      heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out, uav_entries,
      team_entries) = shared
     (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-     terms, vio, form, hit, rx, ry, rz, better, res) = scratch
+     terms, vio, form, hit, better, res) = scratch
     _uav_pass(uav_entries, probe, mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member,
               offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
               sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t], acc2[t],
               flag[t], terms[t], vio[t])
     _team_pass(team_entries, probe, mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff,
-               par, form[t], hit[t], rx[t], ry[t], rz[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
+               par, form[t], hit[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
                terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
                vio_out, res_out)
 
@@ -1047,7 +1049,7 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
             par, uav, cyl, prm, pedge, grid, weights, heads, tails, mu, ref_diff, players,
             pcost, pviol, cost, viol, J, gcost, history, rhistory, hviol,
             sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-            terms, vio, form, hit, rx, ry, rz, better, res, wp, terms_out, vio_out, res_out, uav_entries,
+            terms, vio, form, hit, better, res, wp, terms_out, vio_out, res_out, uav_entries,
             team_entries) -> None:
     """Iterations ``it0 .. it1-1`` of a swarm run in one call (iteration 0: the initial draw),
     each over all particles in blocks of ``bs``, then the global best, the histories
@@ -1064,7 +1066,7 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
               heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out,
               uav_entries, team_entries)
     scratch = (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-               terms, vio, form, hit, rx, ry, rz, better, res)
+               terms, vio, form, hit, better, res)
     _block(MODE_STEP, 0, 0, it0, key, 0.0, 0, shared, scratch, True)  # raises here, not in the loop
     for it in range(it0, it1):
         mode = MODE_INIT if it == 0 else MODE_STEP
@@ -1098,7 +1100,7 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
            sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights, heads, tails, mu,
            ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out, vio_out,
            res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2,
-           flag, terms, vio, form, hit, rx, ry, rz, better, res, uav_entries, team_entries):
+           flag, terms, vio, form, hit, better, res, uav_entries, team_entries):
     """The twin of :func:`staghunt.solvers.game.polish` on UAV ``n``'s deviations in one call:
     a pattern search from ``path (K, 3)`` (cost ``J0``) that moves one coordinate by
     ``+-step`` per candidate (``6 K`` of them, rows ``0 .. 6K-1`` of ``wp``, whose other UAVs'
@@ -1140,7 +1142,7 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
                       sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx,
                       sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
             _team_pass(team_entries, False, MODE_DEVIATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu,
-                       ref_diff, par, form, hit, rx, ry, rz, tmp, acc, acc2, flag, better, terms, vio, res, X, PB,
+                       ref_diff, par, form, hit, tmp, acc, acc2, flag, better, terms, vio, res, X, PB,
                        pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out)
         spent += r1 - r0
         if combine:  # the combination or the best single move, whichever is cheaper
