@@ -118,14 +118,14 @@ _TABLES: dict[int, tuple[int, Any]] = {}
 
 def entry_table(dispatcher: Any) -> Any:
     """``(M, 2)`` int64: ``(signature fingerprint, address)`` of each of ``dispatcher``'s compiled
-    overloads, for :func:`entry_call` (remade when it gains one)."""
+    overloads returning ``None`` (what :func:`entry_call` calls), remade when it gains one."""
     import numpy as np
 
     overloads = getattr(dispatcher, "overloads", {})
     known = _TABLES.get(id(dispatcher))
     if known is None or known[0] != len(overloads):
         rows = [(signature_fingerprint(sig), cres.library.get_pointer_to_function(cres.fndesc.llvm_func_name))
-                for sig, cres in list(overloads.items())]
+                for sig, cres in list(overloads.items()) if cres.signature.return_type == types.none]
         table = np.array(rows, dtype=np.int64).reshape(-1, 2)
         known = _TABLES[id(dispatcher)] = (len(overloads), table)
     return known[1]

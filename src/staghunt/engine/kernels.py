@@ -532,9 +532,10 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments;
     ``tmp (>= S, B)``; ``acc``, ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a
     pair's segments whose bounding boxes over the block's lanes lie farther apart than its
-    separation limit are skipped (exact; see the comment in the body). With ``solo`` (a problem with
-    fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``
-    (``every``: the collisions of all UAVs, from those pairs), and pairs are pruned at any N.
+    separation limit are skipped (exact; see the comment in the body). With ``solo`` (a
+    problem with fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of
+    ``players`` (``every``: the collisions of all UAVs, from those pairs), and pairs are
+    pruned at any N.
     """
     N = px.shape[0]
     K = px.shape[1] - 2
@@ -615,6 +616,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 for q in range(0, 6, 2):
                     box[q, n, j] = min(point[q, j], point[q, j + 1])
                     box[q + 1, n, j] = max(point[q + 1, j], point[q + 1, j + 1])
+    dw = tmp[0]  # a pair's squared distances on one segment: at its end waypoint, along it
+    ds = tmp[1]
     for a in range(N):
         for c in range(a + 1, N):
             if solo and not (_is_player(players, a) or _is_player(players, c)):
@@ -634,8 +637,6 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             # Segment j of the pair, lane by lane: the relative positions p_a - p_c (NumPy's
             # ``rel``) at its ends, the squared distance at its end (free waypoint j + 1, for
             # j < K) and, with ``continuous``, along it; one pass, no stored relative positions.
-            dw = tmp[0]
-            ds = tmp[1]
             for j in range(S):
                 if near[j] == 0 or not (continuous or j < K):
                     continue

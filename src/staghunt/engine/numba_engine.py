@@ -65,6 +65,10 @@ HELPER_PHASES = (("uav_pass",), ("polish",))
 each phase it writes a line to its stdout (``iterate`` and ``polish`` call both entries, and
 start once ``uav_pass`` is in the cache)."""
 
+HELPER_TIMEOUT_S = 600
+"""Longest wait for each of the helper's phases; beyond it the helper is killed and this process
+compiles what is left."""
+
 _ready = threading.Event()
 _prepare_lock = threading.Lock()
 
@@ -285,13 +289,19 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
         if errors:
             if helper is not None:
                 helper.kill()
+                helper.communicate()
             raise errors[0]
         if helper is not None and helper.stdout is not None:
-            helper.stdout.readline()  # uav_pass is in the cache (or the helper ended: compiled here)
+            # uav_pass is in the cache (or the helper ended, or hung and is killed: compiled here)
+            reader = threading.Thread(target=helper.stdout.readline, name="staghunt-engine-helper", daemon=True)
+            reader.start()
+            reader.join(HELPER_TIMEOUT_S)
+            if reader.is_alive():
+                helper.kill()
         _tiny([e for e in ENTRIES if helper is None or e != "polish"])
         if helper is not None:
             try:
-                helper.communicate(timeout=600)
+                helper.communicate(timeout=HELPER_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 helper.kill()
                 helper.communicate()
