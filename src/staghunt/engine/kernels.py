@@ -543,8 +543,11 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     continuous = par[P_CONTINUOUS] != 0.0
     E, near2, seg2 = form[0], form[1], form[2]
 
-    # Formation error, edge form, at the free waypoints.
+    # Formation error, edge form, at the free waypoints. With ``solo`` and not ``every`` only
+    # the players' collisions and J are made (below): the other UAVs' rows are left unwritten.
     for n in range(N):
+        if solo and not every and not _is_player(players, n):
+            continue
         for k in range(K):
             _fill(E[n, k], nb, 0.0)
     for m in range(heads.shape[0]):
@@ -574,6 +577,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
 
     # Nearest team-mate, squared, at the waypoints and along the synchronised segments.
     for n in range(N):
+        if solo and not every and not _is_player(players, n):
+            continue
         for j in range(S):
             _fill(near2[n, j], nb, np.inf)
             _fill(seg2[n, j], nb, np.inf)
@@ -622,6 +627,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
         for c in range(a + 1, N):
             if solo and not (_is_player(players, a) or _is_player(players, c)):
                 continue
+            keep_a = not solo or every or _is_player(players, a)  # the UAVs whose rows are read
+            keep_c = not solo or every or _is_player(players, c)
             if prune:
                 reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
                 n_near = 0
@@ -659,15 +666,19 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                     clz = z0 + t * drz
                     ds[b] = (clx * clx + cly * cly) + clz * clz
                 if j < K:
-                    for b in range(nb):
-                        near2[a, j, b] = min(near2[a, j, b], dw[b])
-                    for b in range(nb):
-                        near2[c, j, b] = min(near2[c, j, b], dw[b])
+                    if keep_a:
+                        for b in range(nb):
+                            near2[a, j, b] = min(near2[a, j, b], dw[b])
+                    if keep_c:
+                        for b in range(nb):
+                            near2[c, j, b] = min(near2[c, j, b], dw[b])
                 if continuous:
-                    for b in range(nb):
-                        seg2[a, j, b] = min(seg2[a, j, b], ds[b])
-                    for b in range(nb):
-                        seg2[c, j, b] = min(seg2[c, j, b], ds[b])
+                    if keep_a:
+                        for b in range(nb):
+                            seg2[a, j, b] = min(seg2[a, j, b], ds[b])
+                    if keep_c:
+                        for b in range(nb):
+                            seg2[c, j, b] = min(seg2[c, j, b], ds[b])
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
