@@ -665,20 +665,16 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                     cly = y0 + t * dry
                     clz = z0 + t * drz
                     ds[b] = (clx * clx + cly * cly) + clz * clz
-                if j < K:
-                    if keep_a:
+                for side in range(2):  # the pair's two UAVs, those whose rows are read
+                    n = a if side == 0 else c
+                    if not (keep_a if side == 0 else keep_c):
+                        continue
+                    if j < K:
                         for b in range(nb):
-                            near2[a, j, b] = min(near2[a, j, b], dw[b])
-                    if keep_c:
+                            near2[n, j, b] = min(near2[n, j, b], dw[b])
+                    if continuous:
                         for b in range(nb):
-                            near2[c, j, b] = min(near2[c, j, b], dw[b])
-                if continuous:
-                    if keep_a:
-                        for b in range(nb):
-                            seg2[a, j, b] = min(seg2[a, j, b], ds[b])
-                    if keep_c:
-                        for b in range(nb):
-                            seg2[c, j, b] = min(seg2[c, j, b], ds[b])
+                            seg2[n, j, b] = min(seg2[n, j, b], ds[b])
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
