@@ -142,6 +142,14 @@ def _is_player(players: np.ndarray, n: int) -> bool:
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def _kept(solo: bool, every: bool, players: np.ndarray, n: int) -> bool:
+    """Whether :func:`_team_terms` makes UAV ``n``'s collisions and ``J`` (and so its formation
+    error and nearest-distance rows): every UAV's, unless ``solo`` without ``every``, then the
+    players' only."""
+    return not solo or every or _is_player(players, n)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def ground_z(x: float, y: float, h: float, grid: np.ndarray, par: np.ndarray) -> float:
     """Absolute altitude ``h + g(x, y)`` exactly as :meth:`staghunt.world.Terrain.absolute`
     (MATLAB rounding for the nearest cell, float32 sums for a float32 grid, or bilinear)."""
@@ -546,7 +554,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     # Formation error, edge form, at the free waypoints. With ``solo`` and not ``every`` only
     # the players' collisions and J are made (below): the other UAVs' rows are left unwritten.
     for n in range(N):
-        if solo and not every and not _is_player(players, n):
+        if not _kept(solo, every, players, n):
             continue
         for k in range(K):
             _fill(E[n, k], nb, 0.0)
@@ -577,7 +585,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
 
     # Nearest team-mate, squared, at the waypoints and along the synchronised segments.
     for n in range(N):
-        if solo and not every and not _is_player(players, n):
+        if not _kept(solo, every, players, n):
             continue
         for j in range(S):
             _fill(near2[n, j], nb, np.inf)
@@ -627,8 +635,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
         for c in range(a + 1, N):
             if solo and not (_is_player(players, a) or _is_player(players, c)):
                 continue
-            keep_a = not solo or every or _is_player(players, a)  # the UAVs whose rows are read
-            keep_c = not solo or every or _is_player(players, c)
+            keep_a = _kept(solo, every, players, a)  # the UAVs whose rows are read
+            keep_c = _kept(solo, every, players, c)
             if prune:
                 reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
                 n_near = 0
@@ -678,7 +686,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
-        if solo and not every and not _is_player(players, n):
+        if not _kept(solo, every, players, n):
             continue
         limit = uav[n, U_LIMIT]
         for k in range(K):
