@@ -136,6 +136,26 @@ def test_multi_start_is_reproducible_and_written_to_result_json(multi, tmp_path)
     assert "equilibria" not in data["search"] and "candidates" in data["search"]
 
 
+def test_stop_certified_ends_at_the_first_certified_start(multi):
+    """``stop="certified"`` with several starts: the run is the full run's prefix up to its first
+    certified candidate, returns that candidate and searches none of the starts after it."""
+    scenario, settings, cert, full = multi
+    early = plan(scenario, "game", 3, settings, engine="numba", certify=cert, stop="certified")
+    first = next((i for i, c in enumerate(full.details["candidates"])
+                  if c["certificate"] is not None and c["certificate"]["status"] == "equilibrium"), None)
+    if first is None:
+        pytest.skip("no certified candidate at this small budget")
+    assert early.details["candidates"] == full.details["candidates"][: first + 1]
+    sel = early.details["selection"]
+    assert sel["stopped_at_first_certified"] and sel["found"] == 1 and not sel["payoff_dominant"]
+    assert sel["selected_start"] == full.details["candidates"][first]["start"]
+    searched = [s["start"] for s in early.details["starts"]]
+    assert len(searched) == sel["starts_searched"] < len(full.details["starts"])
+    assert early.certificate.is_equilibrium and early.evaluations < full.evaluations
+    assert np.allclose(early.costs.total[0], full.details["candidates"][first]["J"], rtol=1e-12)
+    assert not full.details["selection"]["stopped_at_first_certified"]
+
+
 def test_single_start_writes_no_selection(tmp_path):
     scenario = load_scenario("scenario1")
     r = plan(scenario, "game", 1, scenario.solver.with_(particles=10, iterations=3, starts=1), engine="numpy")

@@ -94,8 +94,11 @@ def plan(
     ``stop``: ``"budget"`` (default): each method's own stopping rule. ``"certified"`` (with
     ``certify``; for methods that can stop early, ``game``): the search also stops as soon as
     an intermediate plan passes the certificate, which is then the result's certificate (the
-    same search on the same plan; its time counts in ``certificate_time_s``). For a closed-loop
-    re-planner: the time to a certified equilibrium rather than the best plan of the budget.
+    same search on the same plan; its time counts in ``certificate_time_s``). With several
+    starts the run ends at its first certified equilibrium (often the rigid start's) and searches
+    none of the starts after it, so nothing is selected among equilibria
+    (``details["selection"]["stopped_at_first_certified"]``). For a closed-loop re-planner: the
+    time to a certified equilibrium rather than the best plan of the budget.
     """
     if isinstance(scenario, PlanRequest):
         request = scenario

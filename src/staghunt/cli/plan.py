@@ -39,8 +39,8 @@ def add_commands(sub: Any) -> None:
     add_certificate_options(p, "certify-", skip="the equilibrium certificate that ends the run")
     p.add_argument("--stop", choices=["budget", "certified"], default="budget",
                    help="budget (default): the method's own stopping rule; certified: the game "
-                   "also stops at the first plan the certificate accepts (the time to a certified "
-                   "equilibrium, e.g. for re-planning; needs the certificate)")
+                   "stops at the first plan the certificate accepts, leaving later starts unsearched "
+                   "(the time to a certified equilibrium, e.g. for re-planning; needs the certificate)")
     add_plots_option(p)
     p.add_argument("--dry-run", action="store_true",
                    help="check the inputs and print the budget and the memory the run needs "
@@ -222,6 +222,9 @@ def equilibria_text(equilibria: list[dict[str, Any]], selection: dict[str, Any],
         lines.append(f"  none certified: {selection['rule']}")
     elif selection["payoff_dominant"] and n > 1:
         lines.append("  the selected equilibrium is payoff-dominant: it Pareto-dominates every other one found")
+    elif n == 1 and selection.get("stopped_at_first_certified"):
+        lines.append(f"  --stop certified: the search ended at this first certified equilibrium, after "
+                     f"{selection['starts_searched']} of {selection['starts']} starts; no selection among several")
     elif n == 1:
         lines.append("  one equilibrium found: payoff-dominant among those found only trivially")
     else:

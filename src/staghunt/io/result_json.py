@@ -26,7 +26,8 @@ Layout (``N`` UAVs, ``K`` free waypoints, ``I`` iterations, ``C`` compared objec
         {start, J [N], feasible, evaluations, certificate {status, epsilon, max_relative_gap,
          relative_gaps [N], particles, iterations}, dominated, selected, same [indices into
          search.candidates merged into it]}],
-    selection (null unless a multi-start game) {payoff_dominant, rule, found, starts, selected_start},
+    selection (null unless a multi-start game) {payoff_dominant, rule, found, starts, starts_searched,
+        stopped_at_first_certified (stop="certified": the starts after it left unsearched), selected_start},
     settings {particles, iterations, waypoints, c0, damping, c1, c2, velocity_fraction, starts},
     scenario (staghunt.scenario.scenario_to_dict),
     metrics {collision_free_waypoints, collision_free_continuous, obstacle_free,

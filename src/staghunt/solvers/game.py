@@ -443,10 +443,16 @@ def solve_game(run: MethodRun) -> SolverOutput:
     # A single start keeps its stopping rule (the run's); several stop at their first certified plan.
     explore_stop = run.certified if S == 1 else (
         (lambda wp: certificate(wp).is_equilibrium) if run.certify is not None else None)
+    # stop="certified" (run.certified): the run itself ends at its first certified equilibrium,
+    # with the starts after it left unsearched.
+    first_certified = run.certified is not None and S > 1
     spent = 0
     candidates: list[Candidate] = []
     starts: list[dict[str, Any]] = []
     for s in range(S):
+        if first_certified and any(c.certificate is not None and c.certificate.is_equilibrium
+                                   for c in candidates):
+            break
         kind = _start_kind(s)
         cap = spent + (budget - spent) // (S - s)
         before = spent
@@ -473,6 +479,10 @@ def solve_game(run: MethodRun) -> SolverOutput:
             cert = certificate(start) if c.total_violation[0] == 0 else None
             if cert is not None and cert.is_equilibrium:
                 candidates.append(Candidate(kind + " (start)", start, c.total[0], 0.0, cert, spent - before))
+                if first_certified:
+                    starts.append({"start": kind, "rounds": [], "accepted_replies": 0, "converged": True,
+                                   "evaluations": int(spent - before)})
+                    break
         out = best_response_rounds(model, start, settings, rng, runner, evaluator, cap, spent, record,
                                    repair=kind != "rigid", certified=explore_stop)
         spent = out.evaluations
@@ -483,7 +493,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
                        "converged": out.converged, "evaluations": int(spent - before)})
 
     chosen = candidates[select(candidates, EPSILON).chosen]
-    if S > 1:
+    stopped = first_certified and chosen.certificate is not None and chosen.certificate.is_equilibrium
+    if S > 1 and not stopped:
         # Finish the selected plan with a team polish (no UAV worse off); if the polished plan is
         # still a certified equilibrium, it is one more candidate (it then dominates the other).
         before = spent
@@ -518,8 +529,13 @@ def solve_game(run: MethodRun) -> SolverOutput:
              "same": [j for j, home in enumerate(selection.same_as) if home == i and j != i]}
             for i, d in zip(selection.equilibria, selection.dominated)]
         details["candidates"] = [_summary(c) for c in candidates]
-        details["selection"] = {"payoff_dominant": selection.payoff_dominant, "rule": selection.rule,
+        # A run stopped at its first certified equilibrium compared it with nothing: no claim.
+        rule = ("first certified equilibrium (stop='certified'): the starts after it were not searched"
+                if stopped else selection.rule)
+        details["selection"] = {"payoff_dominant": selection.payoff_dominant and not stopped, "rule": rule,
                                 "found": len(selection.equilibria), "starts": S,
+                                "starts_searched": sum(st["start"] != "polish" for st in starts),
+                                "stopped_at_first_certified": bool(stopped),
                                 "selected_start": candidates[selection.chosen].start}
     return SolverOutput(
         waypoints=plan,
