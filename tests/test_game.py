@@ -4,6 +4,8 @@ every plan."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -11,7 +13,7 @@ from staghunt import plan
 from staghunt.costs import CostModel, evaluate
 from staghunt.scenario import load_scenario
 from staghunt.solvers.dominance import dominates
-from staghunt.solvers.game import formation_target, polish
+from staghunt.solvers.game import SLIDE_FRACTIONS, formation_target, polish, team_slide
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.response import CertifyOptions, certify_plan, check_certify
 
@@ -124,7 +126,9 @@ def test_default_method_returns_an_equilibrium_that_rigid_does_not_dominate(redu
     assert not dominates(rigid.costs.total[0], rigid.costs.total_violation[0],
                          game.costs.total[0], game.costs.total_violation[0])
     d = game.details
-    assert d["seed"] == "rigid" and d["rounds"] and d["accepted_replies"] >= 1
+    assert d["seed"] == "rigid" and d["rounds"] and all(len(r["relative_gains"]) == 3 for r in d["rounds"])
+    # Every accepted reply, and only those, shows as a positive gain in its round.
+    assert d["accepted_replies"] == sum(g > 0 for r in d["rounds"] for g in r["relative_gains"])
     assert isinstance(d["converged"], bool)
 
 
@@ -137,7 +141,7 @@ def test_certificate_is_near_zero_on_the_equilibrium_and_large_when_perturbed(sc
     wp[2, 3:7, 2] += 6.0  # UAV 3 climbs 6 m out of the formation mid-way
     bad = certify_plan(check_certify(scenario1, wp, budget, seed=5, settings=settings))
     assert bad.feasible and not bad.is_equilibrium
-    assert bad.uavs[2].relative > 0.3 and bad.worst == 2
+    assert bad.uavs[2].relative > 10 * budget.epsilon and bad.worst == 2  # far outside the tolerance
 
 
 def test_same_seed_same_plan_and_certificate(scenario1):
@@ -189,3 +193,64 @@ def test_stop_when_certified_returns_the_certificate_it_stopped_on(scenario1):
         assert early.certificate.is_equilibrium
     with pytest.raises(ValueError, match="certify"):
         plan(scenario1, "game", 2, settings, engine="numba", stop="certified")
+
+
+def _open_sky(model: CostModel) -> CostModel:
+    """``model`` without its obstacles, so that straight lines are feasible."""
+    return dataclasses.replace(model, cylinders=np.zeros((0, 3)), prisms=np.zeros((0, 8)),
+                               prism_edges=np.zeros((0, 4)))
+
+
+def _lagging_team(model: CostModel, K: int = 6, exponent: float = 1.1) -> np.ndarray:
+    """Straight lines start to goal at even spacing, but UAV 1 (the leader) spaced as
+    ``t ** exponent``: the same routes, UAV 1 behind its place in the formation."""
+    t = np.arange(1, K + 1) / (K + 1)
+    plan = model.starts[:, None, :] + t[None, :, None] * (model.goals - model.starts)[:, None, :]
+    plan[0] = model.starts[0] + (t ** exponent)[:, None] * (model.goals[0] - model.starts[0])
+    return plan
+
+
+def test_team_slide_resynchronises_a_lagging_uav_without_changing_any_route(model1):
+    """Waypoints slide along the routes only: every UAV's J_s (length, threats, altitude, turns
+    on straight lines) is unchanged, the formation error of the lagging leader goes from 91.7
+    to nothing, and no UAV is worse off."""
+    model = _open_sky(model1)
+    lag = _lagging_team(model)
+    before = evaluate(model, lag[None])
+    assert before.total_violation[0] == 0 and before.formation[0, 0] == pytest.approx(91.724, abs=1e-3)
+    slid, spent = team_slide(model, lag, 100_000)
+    after = evaluate(model, slid[None])
+    assert 0 < spent <= 100_000 and spent % model.n_uavs == 0
+    np.testing.assert_allclose(after.single[0], before.single[0], rtol=1e-9)
+    assert np.all(after.formation[0] < 1e-6) and after.total_violation[0] == 0
+    assert np.all(after.total[0] < before.total[0])
+    # The routes themselves are kept: every new waypoint lies on its UAV's straight line.
+    d = (model.goals - model.starts)[:, None, :]
+    u = slid - model.starts[:, None, :]
+    assert np.abs(np.cross(u, d)).max() < 1e-9
+
+
+def test_team_slide_moves_one_waypoint_of_every_uav_per_sweep(model1):
+    """With the budget of one sweep: either the plan itself (nothing dominates it) or the plan
+    with waypoint k of every UAV moved the first fraction of the way to waypoint k - 1 or k + 1
+    (the start or the goal at the ends), the same k and side for all."""
+    model = _open_sky(model1)
+    lag = _lagging_team(model)
+    N, K = lag.shape[:2]
+    one, spent = team_slide(model, lag, N * (2 * K + 1))
+    assert spent == N * (2 * K + 1)
+    moved = np.flatnonzero(np.any(one != lag, axis=(0, 2)))
+    assert len(moved) == 1
+    k = int(moved[0])
+    full = np.concatenate([model.starts[:, None], lag, model.goals[:, None]], axis=1)
+    options = [lag[:, k] + SLIDE_FRACTIONS[0] * (full[:, k + side] - lag[:, k]) for side in (0, 2)]
+    assert any(np.allclose(one[:, k], o, rtol=0, atol=1e-12) for o in options)
+    c0, c1 = evaluate(model, lag[None]), evaluate(model, one[None])
+    assert dominates(c1.total[0], c1.total_violation[0], c0.total[0], c0.total_violation[0])
+    # Too small a budget, or an infeasible plan: the plan itself, untouched.
+    same, none = team_slide(model, lag, N * 2 * K)
+    assert same is lag and none == 0
+    bad = lag.copy()
+    bad[1] = bad[2]  # UAVs 2 and 3 on top of each other
+    same, spent = team_slide(model, bad, 100_000)
+    assert same is bad and spent == N

@@ -81,7 +81,9 @@ POLISH_STEP = 1.0
 POLISH_MIN_STEP = 1e-3
 """Initial and final coordinate step (m) of the polish."""
 TEAM_POLISH_SHARE = 0.02
-"""Most of the budget one :func:`team_polish` may spend (it usually needs far less)."""
+"""Most of the budget one :func:`team_polish` (or :func:`team_slide`) may spend (it usually needs far less)."""
+SLIDE_FRACTIONS = (0.4, 0.2, 0.1, 0.05, 0.025, 0.0125)
+"""The shares of the way to a neighbouring waypoint that :func:`team_slide` tries, in turn."""
 
 
 class _Rows:
@@ -216,6 +218,46 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
             continue
         i = np.flatnonzero(better)[np.argmin(c.total[better].sum(axis=1))]
         best, J = cands[i], c.total[i]
+    return best, spent
+
+
+def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
+               fractions: tuple[float, ...] = SLIDE_FRACTIONS) -> tuple[np.ndarray, int]:
+    """Pareto-improving search over *when* the team passes where: each sweep evaluates the
+    ``2 K`` plans with waypoint ``k`` of *every* UAV moved the same ``fraction`` of the way
+    towards its waypoint ``k - 1`` or ``k + 1`` (the start or the goal at the ends), and takes,
+    among the feasible ones that Pareto-dominate the plan (no UAV worse, one better, eq. (9a)),
+    the one with the least ``sum_n ln J_n``; else the next, smaller fraction. The waypoints are
+    synchronised, so sliding them along the team's route changes the formation error at each
+    waypoint, the separations and where the turns fall, for all UAVs at once: certified
+    equilibria of scenario 2 differ mostly in this (the same route, its waypoints spaced
+    differently), which neither a one-coordinate move (:func:`team_polish`) nor a UAV alone
+    can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
+    path evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
+    N, K = plan.shape[0], plan.shape[1]
+    if max_evaluations < N * (2 * K + 1):
+        return plan, 0
+    current = evaluator(model, plan[None])
+    if current.total_violation[0] != 0:
+        return plan, N
+    best, J, spent = plan, current.total[0], N
+    starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
+    rows = np.arange(K)
+    for fraction in fractions:
+        while spent + N * 2 * K <= max_evaluations:
+            full = np.concatenate([starts, best, goals], axis=1)  # (N, K + 2, 3)
+            cands = np.repeat(best[None], 2 * K, axis=0)  # (2K, N, K, 3): towards k - 1, then k + 1
+            cands[rows, :, rows] += fraction * (full[:, :K] - best).transpose(1, 0, 2)
+            cands[K + rows, :, rows] += fraction * (full[:, 2:] - best).transpose(1, 0, 2)
+            cands = np.clip(cands, model.lower, model.upper)
+            c = evaluator(model, cands)
+            spent += N * 2 * K
+            better = ((c.total_violation == 0) & np.all(c.total <= J, axis=1)
+                      & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
+            if not better.any():
+                break
+            i = np.flatnonzero(better)[np.argmin(np.log(c.total[better]).sum(axis=1))]
+            best, J = cands[i], c.total[i]
     return best, spent
 
 
@@ -413,11 +455,12 @@ def solve_game(run: MethodRun) -> SolverOutput:
 
     With one start this is the single-start method (the rigid seed, then rounds until
     convergence or the budget). With several (docs/model.md section 6.1), each start is first
-    team-polished (:func:`team_polish`) and, if already certified, a candidate of its own; its
+    team-slid and team-polished (:func:`team_slide`, :func:`team_polish`: no UAV worse off) and,
+    if already certified, a candidate of its own; its
     rounds then stop as soon as their plan is a certified equilibrium (``run.certify``; without
     certificates, on the rounds' own rule), so the budget a start does not need goes to the
-    next ones; the selected plan is team-polished at the end, and the selection made again. What
-    a search with several starts leaves unspent is left (``unspent_evaluations``): the time
+    next ones; the selected plan is team-slid and team-polished at the end, and the selection
+    made again. What a search with several starts leaves unspent is left (``unspent_evaluations``): the time
     saved is the point."""
     scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
     runner, evaluator = run.runner, run.evaluator
@@ -471,6 +514,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
         else:
             record(spent, evaluate(model, start[None]).total[0])
         if S > 1:
+            start, used = team_slide(model, start, min(int(TEAM_POLISH_SHARE * budget), cap - spent), evaluator)
+            spent += used
             start, used = team_polish(model, start, min(int(TEAM_POLISH_SHARE * budget), cap - spent), evaluator)
             spent += used
             # The start itself may already be an equilibrium (the rigid plan often is): a candidate
@@ -495,11 +540,13 @@ def solve_game(run: MethodRun) -> SolverOutput:
     chosen = candidates[select(candidates, EPSILON).chosen]
     stopped = first_certified and chosen.certificate is not None and chosen.certificate.is_equilibrium
     if S > 1 and not stopped:
-        # Finish the selected plan with a team polish (no UAV worse off); if the polished plan is
-        # still a certified equilibrium, it is one more candidate (it then dominates the other).
+        # Finish the selected plan with a team slide and a team polish (no UAV worse off); if the
+        # result is still a certified equilibrium, it is one more candidate (it then dominates
+        # the other).
         before = spent
-        polished, used = team_polish(model, chosen.plan, min(int(TEAM_POLISH_SHARE * budget), budget - spent),
-                                     evaluator)
+        slid, used = team_slide(model, chosen.plan, min(int(TEAM_POLISH_SHARE * budget), budget - spent), evaluator)
+        spent += used
+        polished, used = team_polish(model, slid, min(int(TEAM_POLISH_SHARE * budget), budget - spent), evaluator)
         spent += used
         if polished is not chosen.plan:
             c = evaluate(model, polished[None])
