@@ -363,7 +363,7 @@ def test_deviation_costs_match_the_full_evaluation(n_uavs, radii, terrain):
     DEM (the fixed team-mates' ground looked up once per block)."""
     import dataclasses
 
-    from staghunt.solvers.game import _own_costs
+    from staghunt.solvers.local import _own_costs
 
     model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
     # No cylinder: the straight start-goal lines (10 m apart) are a feasible plan.
@@ -402,7 +402,7 @@ def test_compiled_polish_is_the_reference_loop(n_uavs, terrain):
     box's faces (clamped moves), on flat ground and on a DEM."""
     import dataclasses
 
-    from staghunt.solvers.game import polish
+    from staghunt.solvers.local import polish
 
     model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
     model = dataclasses.replace(model, cylinders=frozen(np.array([[15.0, 50.0, 2.0]])))  # between two routes
@@ -473,7 +473,7 @@ def test_callers_reach_the_kernel_entries_through_their_addresses(monkeypatch):
     parallel one and the polish), never a jump to a wrong address."""
     from staghunt.engine.jit import entry_table, signature_fingerprint
     from staghunt.engine.numba_engine import _Pass, prepare
-    from staghunt.solvers.game import polish
+    from staghunt.solvers.local import polish
 
     prepare()
     for entry in (kn.uav_pass, kn.team_pass):

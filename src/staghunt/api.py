@@ -151,10 +151,11 @@ def certify_waypoints(request: PlanRequest, waypoints: np.ndarray,
     several cores, the UAVs' searches run side by side, one thread each (the same certificate:
     each search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
     assert request.certify is not None and request.certify_settings is not None
-    runner, workers = side_by_side(request.engine)
+    engine, workers = side_by_side(request.engine)
     checked = CertifyRequest.of_checked(request.scenario, waypoints, request.certify_settings,
                                         request.certify, request.seed)
-    return certify_plan(checked, progress=progress, runner=runner, workers=workers)
+    return certify_plan(checked, progress=progress, runner=engine.run_swarm, workers=workers,
+                        evaluator=engine.evaluate)
 
 
 def check_plan(

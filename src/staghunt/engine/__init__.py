@@ -79,19 +79,19 @@ def get_engine(engine: "str | Engine" = "auto", threads: int | None = None) -> E
     raise ValueError(f"unknown engine {engine!r}; choose one of {', '.join(ENGINE_NAMES)}")
 
 
-def side_by_side(engine: Engine) -> tuple[SwarmRunner, int]:
-    """``(runner, workers)`` for many small independent searches (a certificate's per-UAV
+def side_by_side(engine: Engine) -> tuple[Engine, int]:
+    """``(engine, workers)`` for many small independent searches (a certificate's per-UAV
     searches): with the compiled engine on several cores, ``workers`` searches at once, one
-    thread each (no per-iteration barrier, which small swarms pay dearly); otherwise the
-    engine's own runner, one search at a time."""
+    thread each (a compiled engine pinned to one thread: no per-iteration barrier, which small
+    swarms pay dearly); otherwise ``engine`` itself, one search at a time."""
     threads = getattr(engine, "threads", 1)
     if engine.name == "numba" and (threads is None or threads > 1):
         from staghunt.engine.threads import usable_cores
 
         workers = usable_cores() if threads is None else threads
         if workers > 1:
-            return get_engine("numba", threads=1).run_swarm, workers
-    return engine.run_swarm, 1
+            return get_engine("numba", threads=1), workers
+    return engine, 1
 
 
 __all__ = ["ENGINE_NAMES", "Engine", "NumpyEngine", "get_engine", "numba_available", "side_by_side"]

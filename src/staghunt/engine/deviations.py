@@ -16,7 +16,7 @@ from staghunt.engine.scratch import Scratch
 
 class Deviations:
     """``J_n`` of UAV ``n``'s candidate paths with the others' paths of ``plan`` ``(N, K, 3)``
-    fixed: the compiled twin of :func:`staghunt.solvers.game._own_costs` for a plan whose
+    fixed: the compiled twin of :func:`staghunt.solvers.local._own_costs` for a plan whose
     other UAVs are clear of each other and of every obstacle (a feasible plan), evaluating only
     UAV ``n``'s path and its pairs (``MODE_DEVIATE``). Bit-identical to the full evaluation's
     ``J_n``, and ``inf`` exactly where the full evaluation's total violation is not zero."""
@@ -52,7 +52,7 @@ class Deviations:
         return run
 
     def polish(self, J: float, max_evaluations: int, step: float, min_step: float) -> tuple[np.ndarray, float, int]:
-        """:func:`staghunt.solvers.game.polish` of UAV ``n``'s path (cost ``J``) in one compiled
+        """:func:`staghunt.solvers.local.polish` of UAV ``n``'s path (cost ``J``) in one compiled
         call (:func:`staghunt.engine.kernels.polish`: the same decisions on the same costs, so
         the same path). Returns the ``(K, 3)`` path, its ``J_n`` and the evaluations spent."""
         K = self.plan.shape[1]

@@ -1117,7 +1117,7 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
            ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out, vio_out,
            res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2,
            flag, terms, vio, form, hit, better, res, uav_entries, team_entries):
-    """The twin of :func:`staghunt.solvers.game.polish` on UAV ``n``'s deviations in one call:
+    """The twin of :func:`staghunt.solvers.local.polish` on UAV ``n``'s deviations in one call:
     a pattern search from ``path (K, 3)`` (cost ``J0``) that moves one coordinate by
     ``+-step`` per candidate (``6 K`` of them, rows ``0 .. 6K-1`` of ``wp``, whose other UAVs'
     rows hold the fixed paths), then the combination of every improving move (row ``6 K``),

@@ -284,7 +284,7 @@ class Replanner:
         self.search = search if search is not None else config.certify_search(scenario)
         self.known = KnownWorld(scenario)
         self.records: list[ReplanRecord] = []
-        self._runner, self._workers = side_by_side(engine)
+        self._certifier, self._workers = side_by_side(engine)
         # the engine each of two side-by-side solves uses (pinned to one thread), or the engine
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
         if self._workers > 1:
@@ -462,8 +462,8 @@ class Replanner:
         carried: dict[int, Any] = {}
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))
-            cert = certify_plan(request, runner=self._runner, azimuth=azimuth, workers=self._workers,
-                                carried=carried)
+            cert = certify_plan(request, runner=self._certifier.run_swarm, azimuth=azimuth, workers=self._workers,
+                                carried=carried, evaluator=self._certifier.evaluate)
             spent += sum(u.evaluations for u in cert.uavs)
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)

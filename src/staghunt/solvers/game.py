@@ -44,6 +44,7 @@ from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.independent import solo_model
+from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP, polish
 from staghunt.solvers.problem import solo_problem, team_problem
 from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, Certificate
 from staghunt.solvers.selection import Candidate, select
@@ -64,8 +65,6 @@ LOCAL_SHARE = 0.25
 """Share of a reply's particles started near the UAV's current path."""
 LOCAL_SPREAD = 0.05
 """Standard deviation of those perturbations, as a share of each spherical range."""
-ACCEPT_TOL = 1e-9
-"""A reply is accepted if it lowers ``J_n`` by more than this (relative)."""
 GROW_BELOW = 0.005
 """Double the reply budget after a round whose largest relative gain is below this."""
 STOP_FRACTION = 0.25
@@ -77,9 +76,6 @@ VERIFY_EVALUATIONS = DEFAULT_PARTICLES * (DEFAULT_ITERATIONS + 1)
 MIN_REPLY_ITERATIONS = 5
 POLISH_SHARE = 0.25
 """Share of a reply's budget for the local polish of the swarm's best (:func:`polish`)."""
-POLISH_STEP = 1.0
-POLISH_MIN_STEP = 1e-3
-"""Initial and final coordinate step (m) of the polish."""
 TEAM_POLISH_SHARE = 0.02
 """Most of the budget one :func:`team_polish` (or :func:`team_slide`) may spend (it usually needs far less)."""
 SLIDE_FRACTIONS = (0.4, 0.2, 0.1, 0.05, 0.025, 0.0125)
@@ -126,67 +122,6 @@ def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
     out = target.copy()
     out[:, 2] = target[:, 2] - model.terrain.height(target[:, 0], target[:, 1])
     return np.clip(out, model.lower, model.upper)
-
-
-def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
-           evaluator: Evaluator = evaluate, step: float = POLISH_STEP,
-           min_step: float = POLISH_MIN_STEP, compiled: bool = True) -> tuple[np.ndarray, int]:
-    """Local pattern search on UAV ``n``'s free waypoints in the site frame, the others fixed.
-
-    The spherical encoding moves every later waypoint with each step, so a swarm refines a
-    path poorly; this moves one coordinate at a time. Each sweep evaluates the ``6 K`` paths
-    with one coordinate of one waypoint moved by ``+-step`` (clamped to the site box) and the
-    path combining every improving move; the best feasible one that lowers ``J_n`` is taken,
-    else ``step`` halves, down to ``min_step`` metres. Returns the ``(N, K, 3)`` plan (``plan``
-    itself if nothing improved) and the path evaluations spent (``<= max_evaluations``).
-    ``evaluator`` scores the candidates (an engine's ``evaluate``); the plan's own cost is
-    taken with the same evaluator, so every comparison is made in one arithmetic. On the
-    compiled engine (``compiled``) the whole search is one compiled call making the same
-    decisions on the same costs (:meth:`~staghunt.engine.deviations.Deviations.polish`); this
-    loop is its reference.
-    """
-    K = plan.shape[1]
-    moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
-    if max_evaluations < 6 * K + 1:
-        return plan, 0
-    current = evaluator(model, plan[None])
-    if current.total_violation[0] != 0:
-        return plan, 0
-    best, J = plan, float(current.total[0, n])
-    spent = 0
-    # Only UAV n's path changes and the others' stay clear of each other (the plan is feasible):
-    # an engine may evaluate the deviation alone (same J_n, same feasibility verdicts).
-    engine = getattr(evaluator, "__self__", None)
-    fast = engine.deviations(model, plan, n) if hasattr(engine, "deviations") else None
-    if fast is not None and compiled:  # the same search in one compiled call
-        path, _, spent = fast.polish(J, max_evaluations, step, min_step)
-        if np.array_equal(path, plan[n]):
-            return plan, spent
-        best = plan.copy()
-        best[n] = path
-        return best, spent
-
-    def own(paths: np.ndarray) -> np.ndarray:
-        return fast(paths) if fast is not None else _own_costs(model, best, n, paths, evaluator)
-
-    while step >= min_step and spent + 6 * K + 1 <= max_evaluations:
-        cands = np.clip(best[n][None] + step * moves, model.lower, model.upper)
-        Jc = own(cands)
-        spent += len(cands)
-        gain = J - Jc  # (6K,)
-        if not gain.max() > ACCEPT_TOL * J:
-            step /= 2
-            continue
-        g = gain.reshape(2, 3 * K)
-        direction = np.where(g[0] >= g[1], 1.0, -1.0) * (np.maximum(g[0], g[1]) > 0)
-        combined = np.clip(best[n] + step * direction.reshape(K, 3), model.lower, model.upper)
-        Jcomb = own(combined[None])[0]
-        spent += 1
-        i = int(np.argmax(gain))
-        new = best.copy()
-        new[n], J = (combined, Jcomb) if Jcomb < Jc[i] else (cands[i], float(Jc[i]))
-        best = new
-    return best, spent
 
 
 def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
@@ -259,16 +194,6 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
             i = np.flatnonzero(better)[np.argmin(np.log(c.total[better]).sum(axis=1))]
             best, J = cands[i], c.total[i]
     return best, spent
-
-
-def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray,
-               evaluator: Evaluator) -> np.ndarray:
-    """``(Q,)`` ``J_n`` of ``plan`` with UAV ``n``'s path replaced by each of ``paths``
-    ``(Q, K, 3)``; ``inf`` where the deviation breaks a hard constraint."""
-    team = np.repeat(plan[None], len(paths), axis=0)
-    team[:, n] = paths
-    c = evaluator(model, team)
-    return np.where(c.total_violation == 0, c.total[:, n], np.inf)
 
 
 def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], rng: np.random.Generator,
