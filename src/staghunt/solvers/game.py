@@ -164,8 +164,8 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
     among the feasible ones that Pareto-dominate the plan (no UAV worse, one better, eq. (9a)),
     the one with the least ``sum_n ln J_n``; else the next, smaller fraction. The waypoints are
     synchronised, so sliding them along the team's route changes the formation error at each
-    waypoint, the separations and where the turns fall, for all UAVs at once: certified
-    equilibria of scenario 2 differ mostly in this (the same route, its waypoints spaced
+    waypoint and the separations, for all UAVs at once: the equilibria selected on different
+    seeds of scenario 2 differed mostly in this (the same route, its waypoints spaced
     differently), which neither a one-coordinate move (:func:`team_polish`) nor a UAV alone
     can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
     path evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
