@@ -65,6 +65,21 @@ def test_timed_path_within_limits_near_polyline_and_at_rest_at_both_ends():
     assert np.allclose(at, piece.points, atol=1e-6)
 
 
+def test_timed_path_times_a_run_of_millimetre_legs_as_one_point():
+    """Waypoints slid together at the start (legs of 1.3 mm, then 39 m: a plan of the default
+    method once made this) are not timed apart: within the limits, the same end points."""
+    a = np.array([[15.0, 18.66, 20.0]] * 3 + [[15.0004, 18.6612, 20.0], [15.0008, 18.6624, 20.0],
+                                              [15.0011, 18.6636, 20.0], [15.0012, 18.6637, 20.0],
+                                              [26.7, 55.8, 20.0], [36.8, 65.1, 20.0], [85.0, 88.66, 20.0]])
+    points = np.stack([a, a + [-5.0, -8.66, 0.0], a + [5.0, -8.66, 0.0]])  # (3, 10, 3)
+    piece = timed_path(points, 0.0, LIMITS)
+    s = Reference((piece,)).state(np.linspace(piece.t0, piece.t1, 4000))
+    assert np.linalg.norm(s[1], axis=-1).max() <= LIMITS.max_speed
+    assert np.linalg.norm(s[2], axis=-1).max() <= LIMITS.max_acceleration * 1.01
+    assert np.allclose(s[0][:, 0], points[:, 0]) and np.allclose(s[0][:, -1], points[:, -1])
+    assert len(piece.knots) < 40  # the millimetre legs left no knots of their own
+
+
 def test_splice_is_continuous_in_position_velocity_and_acceleration():
     ref = Reference((timed_path(_team_points(), 0.0, LIMITS),))
     ts = 3.7

@@ -39,7 +39,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from staghunt.task import VehicleLimits
-from staghunt.trajectory.timing import split_legs
+from staghunt.trajectory.timing import merge_waypoints, split_legs
 
 CHECK_STEP_S = 0.02
 """Grid of the speed and acceleration checks (s)."""
@@ -197,6 +197,8 @@ def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np
 
 DENSE_SPACING = 3.0
 """Longest sub-leg (m) of the dense paths a timed path interpolates."""
+DUPLICATE_M = 0.01
+"""A point closer than this (m) to the last kept one, for every UAV, is not timed apart."""
 
 
 def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
@@ -215,10 +217,10 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     N = p.shape[0]
     v0 = np.zeros((N, 3)) if v0 is None else np.asarray(v0, dtype=float)
     a0 = np.zeros((N, 3)) if a0 is None else np.asarray(a0, dtype=float)
-    legs = np.linalg.norm(np.diff(p, axis=1), axis=-1).max(axis=0)  # (M - 1,)
-    keep = np.concatenate([[True], legs > 1e-3])
-    if keep.sum() < 2:  # nobody moves: hold
-        keep[-1] = True
+    # Points within DUPLICATE_M of the last kept one for every UAV are dropped (the exporter's
+    # rule, at a centimetre): a run of millimetre legs (waypoints slid together) otherwise
+    # makes the spline swing wildly. Nobody moving: the start and the goal, a hold.
+    keep = merge_waypoints(p, DUPLICATE_M)
     dense, _ = split_legs(p[:, keep], DENSE_SPACING)
     base = knot_times(dense, limits, float(np.linalg.norm(v0, axis=-1).max()))
     v_lim = MARGIN * limits.max_speed

@@ -46,7 +46,8 @@ from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.independent import solo_model
 from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP, polish
 from staghunt.solvers.problem import solo_problem, team_problem
-from staghunt.solvers.response import DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, Certificate
+from staghunt.solvers.response import (DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, Certificate,
+                                       LOCAL_SHARE as CERTIFICATE_LOCAL_SHARE)
 from staghunt.solvers.selection import Candidate, select
 from staghunt.solvers.rigid import rigid_problem
 from staghunt.scenario.model import SolverSettings
@@ -73,6 +74,8 @@ EPSILON = DEFAULT_EPSILON
 """The relative Nash gap the method aims below (the certificate's default tolerance)."""
 VERIFY_EVALUATIONS = DEFAULT_PARTICLES * (DEFAULT_ITERATIONS + 1)
 """A reply search at least this strong (the default certificate's) may declare convergence."""
+LOCAL_CHECK_EVALUATIONS = int(CERTIFICATE_LOCAL_SHARE * VERIFY_EVALUATIONS)
+"""Budget of each UAV's local search before a certificate is asked (the default certificate's own)."""
 MIN_REPLY_ITERATIONS = 5
 POLISH_SHARE = 0.25
 """Share of a reply's budget for the local polish of the swarm's best (:func:`polish`)."""
@@ -295,7 +298,26 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                        "verification": bool(strong)})
         converged = bool(strong and (violation == 0 or not repair) and gains.max() <= EPSILON * STOP_FRACTION)
         if certified is not None and not converged and violation == 0 and gains.max() <= EPSILON:
-            rounds[-1]["certified"] = converged = bool(certified(plan))
+            # Before the certificate: each UAV's local search from the plan, the one the
+            # certificate also makes (a quarter of its default budget); a gain beyond epsilon is
+            # a better reply, taken, and the rounds go on without a certificate that would fail.
+            gained = False
+            for n in range(N):
+                if spent + LOCAL_CHECK_EVALUATIONS > budget:
+                    break
+                moved, used = polish(model, plan, n, LOCAL_CHECK_EVALUATIONS, evaluator)
+                spent += used
+                if moved is not plan:
+                    c = evaluator(model, moved[None])
+                    spent += 1
+                    if c.total_violation[0] == 0 and c.total[0, n] < J[n] * (1.0 - EPSILON):
+                        gains[n] = max(gains[n], (J[n] - c.total[0, n]) / J[n])
+                        plan, J = moved, c.total[0]
+                        accepted += 1
+                        gained = True
+            rounds[-1]["local_check_gain"] = bool(gained)
+            if not gained:
+                rounds[-1]["certified"] = converged = bool(certified(plan))
         if gains.max() < GROW_BELOW:
             reply_evals *= 2
     return RoundsOutcome(plan, J, int(spent), rounds, accepted, converged)
