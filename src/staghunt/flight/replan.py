@@ -58,7 +58,8 @@ from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
 from staghunt.flight.safety import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.game import best_response_rounds
-from staghunt.solvers.response import CertifyOptions, CertifyRequest, certify_plan, check_search
+from staghunt.solvers.local import polish
+from staghunt.solvers.response import LOCAL_SHARE, CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
 
@@ -440,7 +441,9 @@ class Replanner:
                    splice: tuple[Reference, float, float, np.ndarray | None], azimuth: float
                    ) -> tuple[Reference, Any, int]:
         """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
-        while a certificate finds better replies and ``certify_rounds`` allow, adopt them and
+        with ``certify_rounds``, every UAV first makes the certificate's local search and a gain
+        beyond epsilon is adopted (the plan re-timed and checked as below); then, while a
+        certificate finds better replies and ``certify_rounds`` allow, adopt them and
         certify again: every reply in turn (largest gap first) that still gains more than
         epsilon with the replies already kept and keeps the plan feasible, if that keeps more
         than one and the plan's timing from ``splice`` = ``(base, t0, max_stretch, lead)``
@@ -459,6 +462,22 @@ class Replanner:
         options = cfg.certify_options()
         best: tuple[Reference, Any] | None = None
         spent = 0
+        # With certificate rounds, first the certificate's own local search, by every UAV in
+        # turn (a compiled pattern search, milliseconds): a gain beyond epsilon is kept if the
+        # plan stays feasible, and the plan with them if its timing passes, so that no
+        # certificate round is spent on a reply a local move finds.
+        team, J = plan.copy(), judge(model, plan[None]).total[0]
+        local = int(LOCAL_SHARE * self.search.particles * (self.search.iterations + 1))
+        for n in range(len(J) if cfg.certify_rounds > 0 else 0):
+            moved, used = polish(model, team, n, local, judge)
+            spent += used + 1
+            c = judge(model, moved[None])
+            if moved is not team and c.total_violation[0] == 0 and c.total[0][n] < (1 - cfg.epsilon) * J[n]:
+                team, J = moved, c.total[0]
+        if not np.array_equal(team, plan):
+            spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
+            if spliced is not None:
+                plan, new_ref = team, spliced
         carried: dict[int, Any] = {}
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))

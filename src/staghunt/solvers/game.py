@@ -26,7 +26,9 @@ one generator:
    with a reply search at least as strong as the certificate's (:data:`VERIFY_EVALUATIONS`), or
    when the budget is spent (the remainder goes to a last round). Optionally
    (``staghunt.plan(..., stop="certified")``) also as soon as a round with every gain below
-   ``epsilon`` leaves a plan that the certificate accepts.
+   ``epsilon`` leaves a plan that the certificate accepts; before the certificate is asked,
+   every UAV makes the certificate's own local search (:data:`LOCAL_CHECK_EVALUATIONS`), and a
+   gain beyond ``epsilon`` is taken as a reply instead.
 
 The plan returned is the last allocation; :func:`staghunt.plan` then certifies it with an
 independent search (:mod:`staghunt.solvers.response`). The run's ``details`` say what happened:
@@ -246,9 +248,11 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     gains from few strong replies rather than many weak ones). ``azimuth``: half-width of the
     replies' heading range (:func:`~staghunt.encoding.search_space`). ``certified(plan)``:
     after a round that leaves the plan feasible with no reply gaining more than
-    :data:`EPSILON`, asks whether the plan is a certified equilibrium, and if so the rounds stop
-    (converged; the round's ``certified`` flag says so). The check is not counted in the
-    budget."""
+    :data:`EPSILON`, first lets every UAV make a local search (:func:`polish`,
+    :data:`LOCAL_CHECK_EVALUATIONS`, counted in the budget) and takes a gain beyond
+    :data:`EPSILON` as a reply (the round's ``local_check_gains``); otherwise asks whether the
+    plan is a certified equilibrium, and if so the rounds stop (converged; the round's
+    ``certified`` flag says so). The certificate is not counted in the budget."""
     N, P = model.n_uavs, settings.particles
     plan = np.array(plan, dtype=float)
     current = evaluator(model, plan[None])
@@ -301,7 +305,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
             # Before the certificate: each UAV's local search from the plan, the one the
             # certificate also makes (a quarter of its default budget); a gain beyond epsilon is
             # a better reply, taken, and the rounds go on without a certificate that would fail.
-            gained = False
+            local_gains = np.zeros(N)
             for n in range(N):
                 if spent + LOCAL_CHECK_EVALUATIONS > budget:
                     break
@@ -311,12 +315,12 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                     c = evaluator(model, moved[None])
                     spent += 1
                     if c.total_violation[0] == 0 and c.total[0, n] < J[n] * (1.0 - EPSILON):
-                        gains[n] = max(gains[n], (J[n] - c.total[0, n]) / J[n])
+                        local_gains[n] = (J[n] - c.total[0, n]) / J[n]
+                        gains[n] = max(gains[n], local_gains[n])  # no growth of the replies after it
                         plan, J = moved, c.total[0]
                         accepted += 1
-                        gained = True
-            rounds[-1]["local_check_gain"] = bool(gained)
-            if not gained:
+            rounds[-1]["local_check_gains"] = local_gains.tolist()
+            if not local_gains.any():
                 rounds[-1]["certified"] = converged = bool(certified(plan))
         if gains.max() < GROW_BELOW:
             reply_evals *= 2
