@@ -89,6 +89,8 @@ RELAX_KEEP = 0.8
 pop-up) re-plans with the clearance relaxed to this share of what it has: its paths may leave
 sideways, not come closer (the solver's plans lie on their constraints, and a plan allowed to
 come half the hard clearance closer grazed a pop-up within the vehicles' tracking error)."""
+LOCAL_PASSES = 5
+"""Most passes of the UAVs' local searches before a re-plan's first certificate."""
 EMERGENCY_FACTORS = (2.0, 3.0)
 """Multiples of ``max_acceleration`` an emergency stop may brake at, tried in this order: the
 mission limit (3 m/s^2 by default) is well below a multirotor's capability (the simulated
@@ -468,12 +470,16 @@ class Replanner:
         # certificate round is spent on a reply a local move finds.
         team, J = plan.copy(), judge(model, plan[None]).total[0]
         local = int(LOCAL_SHARE * self.search.particles * (self.search.iterations + 1))
-        for n in range(len(J) if cfg.certify_rounds > 0 else 0):
-            moved, used = polish(model, team, n, local, judge)
-            spent += used + 1
-            c = judge(model, moved[None])
-            if moved is not team and c.total_violation[0] == 0 and c.total[0][n] < (1 - cfg.epsilon) * J[n]:
-                team, J = moved, c.total[0]
+        for _ in range(LOCAL_PASSES if cfg.certify_rounds > 0 else 0):  # until no UAV gains
+            gained = False
+            for n in range(len(J)):
+                moved, used = polish(model, team, n, local, judge)
+                spent += used + 1
+                c = judge(model, moved[None])
+                if moved is not team and c.total_violation[0] == 0 and c.total[0][n] < (1 - cfg.epsilon) * J[n]:
+                    team, J, gained = moved, c.total[0], True
+            if not gained:
+                break
         if not np.array_equal(team, plan):
             spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
             if spliced is not None:
