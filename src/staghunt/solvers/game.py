@@ -129,6 +129,29 @@ def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
     return np.clip(out, model.lower, model.upper)
 
 
+def _team_search_start(model: CostModel, plan: np.ndarray, evaluator: Evaluator, max_evaluations: int,
+                       sweep: int) -> tuple[np.ndarray | None, int]:
+    """Where a team search (:func:`team_polish`, :func:`team_slide`) starts: ``(J, N)``, the
+    ``(N,)`` costs of the feasible ``plan`` and the evaluations spent on them; ``(None, spent)``
+    if a sweep of ``sweep`` candidates does not fit in ``max_evaluations`` (``spent`` 0) or the
+    plan is infeasible (``spent`` N)."""
+    N = plan.shape[0]
+    if max_evaluations < N * (sweep + 1):
+        return None, 0
+    current = evaluator(model, plan[None])
+    if current.total_violation[0] != 0:
+        return None, N
+    return current.total[0], N
+
+
+def _dominating(c: Any, J: np.ndarray) -> np.ndarray:
+    """``(Q,)`` whether each evaluated candidate of ``c`` (:func:`staghunt.costs.evaluate`'s
+    result for ``Q`` plans) is feasible and Pareto-dominates costs ``J`` ``(N,)`` (eq. (9a)),
+    better somewhere by more than :data:`ACCEPT_TOL` (relative)."""
+    return ((c.total_violation == 0) & np.all(c.total <= J, axis=1)
+            & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
+
+
 def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
                 step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
     """Pareto-improving pattern search that moves the whole team: each sweep evaluates the
@@ -141,18 +164,15 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
     evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
     N, K = plan.shape[0], plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, 1, K, 3)
-    if max_evaluations < N * (6 * K + 1):
-        return plan, 0
-    current = evaluator(model, plan[None])
-    if current.total_violation[0] != 0:
-        return plan, N
-    best, J, spent = plan, current.total[0], N
+    J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 6 * K)
+    if J is None:
+        return plan, spent
+    best = plan
     while step >= min_step and spent + N * 6 * K <= max_evaluations:
         cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
         c = evaluator(model, cands)
         spent += N * 6 * K
-        better = ((c.total_violation == 0) & np.all(c.total <= J, axis=1)
-                  & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
+        better = _dominating(c, J)
         if not better.any():
             step /= 2
             continue
@@ -175,12 +195,10 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
     can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
     path evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
     N, K = plan.shape[0], plan.shape[1]
-    if max_evaluations < N * (2 * K + 1):
-        return plan, 0
-    current = evaluator(model, plan[None])
-    if current.total_violation[0] != 0:
-        return plan, N
-    best, J, spent = plan, current.total[0], N
+    J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 2 * K)
+    if J is None:
+        return plan, spent
+    best = plan
     starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
     rows = np.arange(K)
     for fraction in fractions:
@@ -192,8 +210,7 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
             cands = np.clip(cands, model.lower, model.upper)
             c = evaluator(model, cands)
             spent += N * 2 * K
-            better = ((c.total_violation == 0) & np.all(c.total <= J, axis=1)
-                      & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
+            better = _dominating(c, J)
             if not better.any():
                 break
             i = np.flatnonzero(better)[np.argmin(np.log(c.total[better]).sum(axis=1))]
