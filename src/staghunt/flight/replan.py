@@ -58,7 +58,7 @@ from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
 from staghunt.flight.safety import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.game import best_response_rounds
-from staghunt.solvers.local import polish
+from staghunt.solvers.local import local_pass
 from staghunt.solvers.response import LOCAL_SHARE, CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
@@ -471,14 +471,9 @@ class Replanner:
         team, J = plan.copy(), judge(model, plan[None]).total[0]
         local = int(LOCAL_SHARE * self.search.particles * (self.search.iterations + 1))
         for _ in range(LOCAL_PASSES if cfg.certify_rounds > 0 else 0):  # until no UAV gains
-            gained = False
-            for n in range(len(J)):
-                moved, used = polish(model, team, n, local, judge)
-                spent += used + 1
-                c = judge(model, moved[None])
-                if moved is not team and c.total_violation[0] == 0 and c.total[0][n] < (1 - cfg.epsilon) * J[n]:
-                    team, J, gained = moved, c.total[0], True
-            if not gained:
+            team, J, gains, used = local_pass(model, team, J, local, cfg.epsilon, judge)
+            spent += used
+            if not gains.any():
                 break
         if not np.array_equal(team, plan):
             spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)

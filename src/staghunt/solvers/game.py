@@ -46,7 +46,7 @@ from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.independent import solo_model
-from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP, polish
+from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP, local_pass, polish
 from staghunt.solvers.problem import solo_problem, team_problem
 from staghunt.solvers.response import (DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, Certificate,
                                        LOCAL_SHARE as CERTIFICATE_LOCAL_SHARE)
@@ -322,20 +322,11 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
             # Before the certificate: each UAV's local search from the plan, the one the
             # certificate also makes (a quarter of its default budget); a gain beyond epsilon is
             # a better reply, taken, and the rounds go on without a certificate that would fail.
-            local_gains = np.zeros(N)
-            for n in range(N):
-                if spent + LOCAL_CHECK_EVALUATIONS > budget:
-                    break
-                moved, used = polish(model, plan, n, LOCAL_CHECK_EVALUATIONS, evaluator)
-                spent += used
-                if moved is not plan:
-                    c = evaluator(model, moved[None])
-                    spent += 1
-                    if c.total_violation[0] == 0 and c.total[0, n] < J[n] * (1.0 - EPSILON):
-                        local_gains[n] = (J[n] - c.total[0, n]) / J[n]
-                        gains[n] = max(gains[n], local_gains[n])  # no growth of the replies after it
-                        plan, J = moved, c.total[0]
-                        accepted += 1
+            plan, J, local_gains, used = local_pass(model, plan, J, LOCAL_CHECK_EVALUATIONS, EPSILON, evaluator,
+                                                    budget - spent)
+            spent += used
+            accepted += int(np.count_nonzero(local_gains))
+            gains = np.maximum(gains, local_gains)  # no growth of the replies after a gain
             rounds[-1]["local_check_gains"] = local_gains.tolist()
             if not local_gains.any():
                 rounds[-1]["certified"] = converged = bool(certified(plan))

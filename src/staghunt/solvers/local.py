@@ -88,3 +88,28 @@ def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray,
     team[:, n] = paths
     c = evaluator(model, team)
     return np.where(c.total_violation == 0, c.total[:, n], np.inf)
+
+
+def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, epsilon: float,
+               evaluator: Evaluator = evaluate, limit: float = np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Every UAV in turn makes a local search (:func:`polish`, ``per_uav`` evaluations) from the
+    feasible ``plan`` ``(N, K, 3)`` with costs ``J`` ``(N,)``; a path that lowers its ``J_n`` by
+    more than ``epsilon`` (relative) and keeps the plan feasible is taken. No search starts that
+    could take the evaluations past ``limit``. Returns the plan, its costs, the ``(N,)`` relative
+    gains taken (0 where none) and the path evaluations spent."""
+    gains = np.zeros(len(J))
+    spent = 0
+    for n in range(len(J)):
+        if spent + per_uav > limit:
+            break
+        moved, used = polish(model, plan, n, per_uav, evaluator)
+        spent += used
+        if moved is plan:
+            continue
+        c = evaluator(model, moved[None])
+        spent += 1
+        if c.total_violation[0] == 0 and c.total[0, n] < J[n] * (1.0 - epsilon):
+            gains[n] = (J[n] - c.total[0, n]) / J[n]
+            plan, J = moved, c.total[0]
+    return plan, J, gains, spent
+
