@@ -1,7 +1,8 @@
 """Local deviations of one UAV: a pattern search on its own path with the others fixed.
 
-Shared by the default method's replies (:mod:`staghunt.solvers.game`) and the equilibrium
-certificate (:mod:`staghunt.solvers.response`): the spherical encoding of the swarms moves every
+Shared by the default method's replies and its check before certificates
+(:mod:`staghunt.solvers.game`), the equilibrium certificate (:mod:`staghunt.solvers.response`)
+and the re-planner (:mod:`staghunt.flight.replan`): the spherical encoding of the swarms moves every
 later waypoint with each step, so a swarm refines a path poorly and cannot move one waypoint a
 little; this search moves one coordinate at a time in the site frame.
 """
@@ -112,4 +113,3 @@ def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, 
             gains[n] = (J[n] - c.total[0, n]) / J[n]
             plan, J = moved, c.total[0]
     return plan, J, gains, spent
-
