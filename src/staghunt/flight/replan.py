@@ -444,7 +444,8 @@ class Replanner:
                    ) -> tuple[Reference, Any, int]:
         """Certify ``plan`` (spliced as ``new_ref``, solved with headings within ``azimuth``);
         with ``certify_rounds``, every UAV first makes the certificate's local search and a gain
-        beyond epsilon is adopted (the plan re-timed and checked as below); then, while a
+        beyond epsilon is adopted (the plan re-timed and checked as below; again after every
+        adopted reply); then, while a
         certificate finds better replies and ``certify_rounds`` allow, adopt them and
         certify again: every reply in turn (largest gap first) that still gains more than
         epsilon with the replies already kept and keeps the plan feasible, if that keeps more
@@ -464,21 +465,30 @@ class Replanner:
         options = cfg.certify_options()
         best: tuple[Reference, Any] | None = None
         spent = 0
-        # With certificate rounds, first the certificate's own local search, by every UAV in
-        # turn (a compiled pattern search, milliseconds): a gain beyond epsilon is kept if the
-        # plan stays feasible, and the plan with them if its timing passes, so that no
-        # certificate round is spent on a reply a local move finds.
-        team, J = plan.copy(), judge(model, plan[None]).total[0]
         local = int(LOCAL_SHARE * self.search.particles * (self.search.iterations + 1))
-        for _ in range(LOCAL_PASSES if cfg.certify_rounds > 0 else 0):  # until no UAV gains
-            team, J, gains, used = local_pass(model, team, J, local, cfg.epsilon, judge)
+
+        def settle(plan: np.ndarray, new_ref: Reference) -> tuple[np.ndarray, Reference, int, bool]:
+            """Before a certificate: the certificate's own local search, by every UAV in turn
+            (a compiled pattern search, milliseconds), in passes until none gains more than
+            epsilon; the gains are kept if the plan stays feasible and its timing passes, so that
+            no certificate is spent on a reply a local move finds. Returns the plan, its
+            reference, the evaluations spent and whether the plan changed."""
+            team, J = plan.copy(), judge(model, plan[None]).total[0]
+            used_all = 0
+            for _ in range(LOCAL_PASSES):
+                team, J, gains, used = local_pass(model, team, J, local, cfg.epsilon, judge)
+                used_all += used
+                if not gains.any():
+                    break
+            if not np.array_equal(team, plan):
+                spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
+                if spliced is not None:
+                    return team, spliced, used_all, True
+            return plan, new_ref, used_all, False
+
+        if cfg.certify_rounds > 0:
+            plan, new_ref, used, _ = settle(plan, new_ref)
             spent += used
-            if not gains.any():
-                break
-        if not np.array_equal(team, plan):
-            spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
-            if spliced is not None:
-                plan, new_ref = team, spliced
         carried: dict[int, Any] = {}
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))
@@ -523,6 +533,10 @@ class Replanner:
             if adopted is None:
                 break
             plan, new_ref = adopted
+            plan, new_ref, used, moved = settle(plan, new_ref)
+            spent += used
+            if moved:  # a carried search fixed the others' paths as they were
+                carried = {}
         return best[0], best[1], spent
 
     def _splice(self, base: Reference, t0: float, sub: Scenario, plan: np.ndarray, max_stretch: float,
