@@ -39,8 +39,6 @@ from staghunt.io.atomic import write_file_set
 from staghunt.missions import formats as fm
 from staghunt.trajectory import SafetyReport, Trajectories, time_and_check
 
-FORMATS = fm.FORMATS
-
 
 class ExportRefused(FieldError):
     """The plan is infeasible or unsafe in time and ``force`` was not given (exit 3)."""
@@ -76,11 +74,11 @@ class ExportReport:
 
 def _parse_formats(formats: Any) -> tuple[str, ...]:
     if formats is None:
-        return FORMATS
+        return fm.FORMATS
     items = [f.strip() for f in (formats.split(",") if isinstance(formats, str) else formats)]
-    unknown = [f for f in items if f not in FORMATS]
+    unknown = [f for f in items if f not in fm.FORMATS]
     if unknown or not items:
-        raise ValueError(f"unknown format {unknown[0] if unknown else ''!r}; choose from {', '.join(FORMATS)}")
+        raise ValueError(f"unknown format {unknown[0] if unknown else ''!r}; choose from {', '.join(fm.FORMATS)}")
     return tuple(dict.fromkeys(items))
 
 

@@ -218,6 +218,16 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
     return best, spent
 
 
+def team_refine(model: CostModel, plan: np.ndarray, each: int, left: int,
+                evaluator: Evaluator = evaluate) -> tuple[np.ndarray, int]:
+    """:func:`team_slide`, then :func:`team_polish`, each with at most ``each`` path evaluations
+    and both together at most ``left``. Returns the ``(N, K, 3)`` plan (``plan`` itself if
+    nothing improved) and the evaluations spent."""
+    slid, spent = team_slide(model, plan, min(each, left), evaluator)
+    polished, used = team_polish(model, slid, min(each, left - spent), evaluator)
+    return polished, spent + used
+
+
 def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], rng: np.random.Generator,
                     particles: int) -> np.ndarray:
     """``(W, 1, K, 3)`` spherical warm particles: ``paths`` (current first) encoded, then
@@ -452,9 +462,6 @@ def solve_game(run: MethodRun) -> SolverOutput:
     candidates: list[Candidate] = []
     starts: list[dict[str, Any]] = []
     for s in range(S):
-        if first_certified and any(c.certificate is not None and c.certificate.is_equilibrium
-                                   for c in candidates):
-            break
         kind = _start_kind(s)
         cap = spent + (budget - spent) // (S - s)
         before = spent
@@ -473,9 +480,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
         else:
             record(spent, evaluate(model, start[None]).total[0])
         if S > 1:
-            start, used = team_slide(model, start, min(int(TEAM_POLISH_SHARE * budget), cap - spent), evaluator)
-            spent += used
-            start, used = team_polish(model, start, min(int(TEAM_POLISH_SHARE * budget), cap - spent), evaluator)
+            start, used = team_refine(model, start, int(TEAM_POLISH_SHARE * budget), cap - spent, evaluator)
             spent += used
             # The start itself may already be an equilibrium (the rigid plan often is): a candidate
             # of its own, whatever equilibrium the rounds then reach from it.
@@ -495,6 +500,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
         candidates.append(Candidate(kind, out.plan, c.total[0], float(c.total_violation[0]), cert, spent - before))
         starts.append({"start": kind, "rounds": out.rounds, "accepted_replies": out.accepted,
                        "converged": out.converged, "evaluations": int(spent - before)})
+        if first_certified and cert is not None and cert.is_equilibrium:
+            break
 
     chosen = candidates[select(candidates, EPSILON).chosen]
     stopped = first_certified and chosen.certificate is not None and chosen.certificate.is_equilibrium
@@ -503,9 +510,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
         # result is still a certified equilibrium, it is one more candidate (it then dominates
         # the other).
         before = spent
-        slid, used = team_slide(model, chosen.plan, min(int(TEAM_POLISH_SHARE * budget), budget - spent), evaluator)
-        spent += used
-        polished, used = team_polish(model, slid, min(int(TEAM_POLISH_SHARE * budget), budget - spent), evaluator)
+        polished, used = team_refine(model, chosen.plan, int(TEAM_POLISH_SHARE * budget), budget - spent, evaluator)
         spent += used
         if polished is not chosen.plan:
             c = evaluate(model, polished[None])
