@@ -194,6 +194,32 @@ def test_evaluate_agrees_zero_weights_and_beta():
     assert_costs_agree(make_model(n, continuous=False), population(model, 64, 10, seed=6))
 
 
+def test_kept_evaluation_passes_return_their_own_arrays_on_every_thread():
+    """Small batches reuse a pass kept per thread: a result is never overwritten by the next
+    evaluation of the same shape, a batch too large to keep gives the same values, and threads
+    evaluating at once get what one thread gets."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from staghunt.engine.numba_engine import EVALUATION_ROWS
+
+    model = make_model(3)
+    a, b = population(model, 20, 10, seed=21), population(model, 20, 10, seed=22)
+    first = fast_evaluate(model, a)
+    kept = {name: np.array(getattr(first, name)) for name in ("terms", "single", "formation", "total", "violation")}
+    second = fast_evaluate(model, b)
+    for name, value in kept.items():
+        assert np.array_equal(getattr(first, name), value), name
+    assert not np.array_equal(first.total, second.total)
+    big = population(model, EVALUATION_ROWS + 1, 10, seed=23)
+    big[:20] = a
+    assert np.array_equal(fast_evaluate(model, big).total[:20], first.total)
+    batches = [population(model, 20, 10, seed=s) for s in range(30, 38)]
+    alone = [fast_evaluate(model, w).total for w in batches]
+    with ThreadPoolExecutor(2) as pool:
+        together = list(pool.map(lambda w: fast_evaluate(model, w).total, batches * 4))
+    assert all(np.array_equal(t, alone[i % len(batches)]) for i, t in enumerate(together))
+
+
 def test_dominance_kernels_match_reference():
     rng = np.random.default_rng(0)
     C, P = 3, 200

@@ -277,3 +277,65 @@ def test_the_certificate_finds_small_moves_the_swarm_cannot(scenario1, reduced, 
     monkeypatch.setattr(response, "LOCAL_SHARE", 0.0)
     swarm_only = certify_plan(request)
     assert swarm_only.uavs[2].relative < u.relative and swarm_only.uavs[2].evaluations == 300
+
+
+def test_local_pass_side_by_side_makes_the_same_decisions(model1, reduced):
+    """``local_pass`` with its searches made side by side (each standing until a gain changes the
+    plan) gives the plan, costs, gains, evaluations and searches of one search at a time, also
+    when a gain mid-pass makes the later UAV search again from the new plan."""
+    from staghunt.engine import get_engine
+    from staghunt.solvers.local import local_pass
+
+    ev = get_engine("numba", threads=1).evaluate
+    _, game, _ = reduced
+    wp = np.array(game.waypoints)
+    wp[1, 3:7, 2] += 6.0  # UAV 2 climbs 6 m out of the formation: its local search gains
+    J = ev(model1, wp[None]).total[0]
+    one = local_pass(model1, wp, J, 3000, 0.01, ev)
+    two = local_pass(model1, wp, J, 3000, 0.01, ev, workers=2)
+    assert one.gains[1] > 0.01  # taken mid-pass: UAV 3 searches again from the new plan
+    assert np.array_equal(one.plan, two.plan) and np.array_equal(one.costs, two.costs)
+    assert np.array_equal(one.gains, two.gains) and one.evaluations == two.evaluations
+    assert [(m.n, m.evaluations) for m in one.searches] == [(m.n, m.evaluations) for m in two.searches]
+    for a, b in zip(one.searches, two.searches):
+        assert np.array_equal(a.plan, b.plan) and np.array_equal(a.path, b.path)
+    assert np.array_equal(one.searches[2].plan, one.plan)  # UAV 3's search: from the plan after the gain
+    assert not np.array_equal(one.searches[0].plan, one.plan)
+
+
+def test_the_certificate_takes_the_local_searches_made_just_before(scenario1, model1, reduced, monkeypatch):
+    """The local searches of a pass that took nothing are the certificate's own searches from the
+    plan: handed to it, they are not made again and the certificate is the same, evaluations
+    included; searches with another budget are not taken."""
+    from staghunt.engine import get_engine
+    from staghunt.solvers import response
+    from staghunt.solvers.local import local_pass
+
+    engine = get_engine("numba", threads=1)
+    _, game, _ = reduced
+    options = CertifyOptions(particles=60, iterations=20)
+    budget = int(response.LOCAL_SHARE * 60 * 21)  # the certificate's local search of one UAV
+    wp = np.array(game.waypoints)
+    done = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget, 0.01, engine.evaluate)
+    assert not done.gains.any() and len(done.searches) == 3  # an equilibrium: nothing taken
+    request = check_certify(scenario1, wp, options, seed=3)
+    calls = []
+    original = response.polish
+
+    def counted(*args, **kwargs):
+        calls.append(args[2])
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(response, "polish", counted)
+    kw = dict(runner=engine.run_swarm, evaluator=engine.evaluate)
+    alone = certify_plan(request, **kw)
+    made = len(calls)
+    taken = certify_plan(request, **kw, searched=done.searches)
+    assert made - (len(calls) - made) == 3  # one local search per UAV not made again
+    assert [(u.current, u.best, u.gap, u.evaluations) for u in alone.uavs] == \
+        [(u.current, u.best, u.gap, u.evaluations) for u in taken.uavs]
+    assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(alone.uavs, taken.uavs))
+    other = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget + 1, 0.01, engine.evaluate)
+    before = len(calls)
+    certify_plan(request, **kw, searched=other.searches)
+    assert len(calls) - before == made

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, Callable
 
@@ -18,6 +18,7 @@ from staghunt.result import PlanResult, Status
 from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.solvers import METHODS
 from staghunt.solvers.base import MethodRun, RequestError, check_seed
+from staghunt.solvers.local import LocalSearch
 from staghunt.solvers.response import Certificate, CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.solvers.swarm import Progress
 
@@ -113,25 +114,26 @@ def plan(
     compile_s = float(prepare()) if callable(prepare) else 0.0
     checks: list[tuple[np.ndarray, Certificate, float]] = []
 
-    def certificate_of(wp: np.ndarray) -> Certificate:
+    def certificate_of(wp: np.ndarray, searched: Sequence[LocalSearch] = ()) -> Certificate:
         """The certificate of ``wp``, made once per plan (a method may ask for several plans')."""
         assert certify is not None
         for seen, cert, _ in checks:
             if np.array_equal(seen, wp):
                 return cert
         t = time.perf_counter()
-        cert = certify_waypoints(request, wp, certify_progress)
+        cert = certify_waypoints(request, wp, certify_progress, searched)
         checks.append((np.array(wp, copy=True), cert, time.perf_counter() - t))
         return cert
 
-    def certified(wp: np.ndarray) -> bool:
-        return certificate_of(wp).is_equilibrium
+    def certified(wp: np.ndarray, searched: Sequence[LocalSearch] = ()) -> bool:
+        return certificate_of(wp, searched).is_equilibrium
 
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     out = METHODS[method](MethodRun(scenario, settings, rng, progress, resolved.run_swarm,
                                     resolved.evaluate, certified if stop == "certified" else None,
-                                    certificate_of if certify is not None else None))
+                                    certificate_of if certify is not None else None,
+                                    side_by_side(resolved)[1]))
     spent_checking = sum(c[2] for c in checks)
     wall = time.perf_counter() - t0 - spent_checking
     result = assemble(scenario, method, seed, settings, out.waypoints, out.history,
@@ -145,17 +147,19 @@ def plan(
 
 
 def certify_waypoints(request: PlanRequest, waypoints: np.ndarray,
-                      progress: Callable[[int, int, int, int], None] | None) -> Certificate:
+                      progress: Callable[[int, int, int, int], None] | None,
+                      searched: Sequence[LocalSearch] = ()) -> Certificate:
     """The certificate of ``waypoints`` ``(N, K, 3)`` with the checked ``request``'s certificate
     options (``request.certify``, not ``None``) and seed, run by its engine: with the compiled engine on
     several cores, the UAVs' searches run side by side, one thread each (the same certificate:
-    each search has its own seed; no per-iteration barrier, which the small searches pay dearly)."""
+    each search has its own seed; no per-iteration barrier, which the small searches pay dearly).
+    ``searched``: local searches already made from ``waypoints`` (``certify_plan``'s)."""
     assert request.certify is not None and request.certify_settings is not None
     engine, workers = side_by_side(request.engine)
     checked = CertifyRequest.of_checked(request.scenario, waypoints, request.certify_settings,
                                         request.certify, request.seed)
     return certify_plan(checked, progress=progress, runner=engine.run_swarm, workers=workers,
-                        evaluator=engine.evaluate)
+                        evaluator=engine.evaluate, searched=searched)
 
 
 def check_plan(

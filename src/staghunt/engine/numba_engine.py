@@ -310,21 +310,54 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
         return time.perf_counter() - t0
 
 
+EVALUATION_PASSES = 8
+"""Evaluation passes kept per thread (:func:`evaluate`): the last shapes and models evaluated."""
+EVALUATION_ROWS = 256
+"""Batches of at most this many allocations use a kept pass; larger ones (rare, and already
+dominated by the kernels) build their own, so that no thread keeps large buffers."""
+_evaluation_passes = threading.local()
+
+
+def _evaluation_pass(ma: ModelArrays, N: int, K: int, Q: int) -> _Pass:
+    """The pass that evaluates ``Q`` allocations of ``N`` UAVs x ``K`` waypoints of the model of
+    ``ma``, with its own block buffers and its kernel arguments bound once: made on this
+    thread's first such evaluation, then reused (a search such as ``game``'s team polish
+    evaluates small batches of the same shape thousands of times, and building the pass cost
+    more than the kernels). One cache per thread, so that threads never share buffers."""
+    runs = getattr(_evaluation_passes, "runs", None)
+    if runs is None:
+        runs = _evaluation_passes.runs = {}
+    key = (id(ma), N, K, Q)
+    entry = runs.pop(key, None)
+    if entry is None or entry[0] is not ma:
+        run = _Pass(ma, no_swarm(N, K), N, K, 0, 1, 0, wp=np.empty((Q, N, K, 3)))
+        run.mode = kn.MODE_EVALUATE
+        run.scratch = [Scratch(N, K, 0, run.B)]
+        entry = (ma, run)
+    runs[key] = entry  # the most recent last
+    while len(runs) > EVALUATION_PASSES:
+        del runs[next(iter(runs))]
+    return entry[1]
+
+
 def evaluate(model: CostModel, waypoints: np.ndarray) -> Costs:
     """Compiled twin of :func:`staghunt.costs.evaluate`: ``(P, N, K, 3)`` ``(x, y, h)`` -> :class:`Costs`."""
     prepare()
-    wp = np.array(waypoints, dtype=np.float64, order="C", copy=True)
+    wp = np.asarray(waypoints, dtype=np.float64)
     P, N, K = wp.shape[0], wp.shape[1], wp.shape[2]
-    run = _Pass(_model_arrays_cached(model), no_swarm(N, K), N, K, 0, 1, 0, wp=wp)
-    run.mode = kn.MODE_EVALUATE
-    run.ensure_scratch(1)
-    try:
+    if P <= EVALUATION_ROWS:
+        run = _evaluation_pass(_model_arrays_cached(model), N, K, P)
+        run.wp[...] = wp
         run.work(0, P, 0)
-    finally:
-        run.release()
+    else:
+        run = _Pass(_model_arrays_cached(model), no_swarm(N, K), N, K, 0, 1, 0, wp=np.array(wp, order="C"))
+        run.mode = kn.MODE_EVALUATE
+        run.ensure_scratch(1)
+        with _releasing(run):
+            run.work(0, P, 0)
     res = run.res_out
-    return Costs(terms=run.terms_out, single=res[:, 1].copy(), formation=res[:, 0].copy(),
-                 total=res[:, 2].copy(), violation=run.vio_out)
+    return Costs(terms=run.terms_out.copy(), single=res[:, 1].copy(), formation=res[:, 0].copy(),
+                 total=res[:, 2].copy(), violation=run.vio_out.copy())
 
 
 def _run(

@@ -58,7 +58,7 @@ from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
 from staghunt.flight.safety import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.game import best_response_rounds
-from staghunt.solvers.local import local_pass
+from staghunt.solvers.local import LocalSearch, local_pass
 from staghunt.solvers.response import LOCAL_SHARE, CertifyOptions, CertifyRequest, certify_plan, check_search
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
@@ -467,34 +467,41 @@ class Replanner:
         spent = 0
         local = int(LOCAL_SHARE * self.search.particles * (self.search.iterations + 1))
 
-        def settle(plan: np.ndarray, new_ref: Reference) -> tuple[np.ndarray, Reference, int, bool]:
+        def settle(plan: np.ndarray, new_ref: Reference
+                   ) -> tuple[np.ndarray, Reference, int, bool, tuple[LocalSearch, ...]]:
             """Before a certificate: the certificate's own local search, by every UAV in turn
-            (a compiled pattern search, milliseconds), in passes until none gains more than
-            epsilon; the gains are kept if the plan stays feasible and its timing passes, so that
-            no certificate is spent on a reply a local move finds. Returns the plan, its
-            reference, the evaluations spent and whether the plan changed."""
+            (a compiled pattern search, milliseconds; side by side on two cores), in passes until
+            none gains more than epsilon; the gains are kept if the plan stays feasible and its
+            timing passes, so that no certificate is spent on a reply a local move finds. Returns
+            the plan, its reference, the evaluations spent, whether the plan changed and the last
+            pass's searches (the certificate's own searches of the plan when it took nothing)."""
             team, J = plan.copy(), judge(model, plan[None]).total[0]
             used_all = 0
+            last: tuple[LocalSearch, ...] = ()
             for _ in range(LOCAL_PASSES):
-                team, J, gains, used = local_pass(model, team, J, local, cfg.epsilon, judge)
-                used_all += used
-                if not gains.any():
+                done = local_pass(model, team, J, local, cfg.epsilon, judge, workers=self._workers)
+                team, J, used_all, last = done.plan, done.costs, used_all + done.evaluations, done.searches
+                if not done.gains.any():
                     break
             if not np.array_equal(team, plan):
                 spliced, _, _ = self._splice(base, t0, sub, team, max_stretch, lead)
                 if spliced is not None:
-                    return team, spliced, used_all, True
-            return plan, new_ref, used_all, False
+                    return team, spliced, used_all, True, last
+            return plan, new_ref, used_all, False, last
 
+        searched: tuple[LocalSearch, ...] = ()
         if cfg.certify_rounds > 0:
-            plan, new_ref, used, _ = settle(plan, new_ref)
+            plan, new_ref, used, _, searched = settle(plan, new_ref)
             spent += used
         carried: dict[int, Any] = {}
         for round_ in range(cfg.certify_rounds + 1):
             request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))
             cert = certify_plan(request, runner=self._certifier.run_swarm, azimuth=azimuth, workers=self._workers,
-                                carried=carried, evaluator=self._certifier.evaluate)
-            spent += sum(u.evaluations for u in cert.uavs)
+                                carried=carried, evaluator=self._certifier.evaluate, searched=searched)
+            # the local searches it took from settle() are counted there already
+            spent += sum(u.evaluations for u in cert.uavs) - sum(
+                m.evaluations for m in searched
+                if m.n not in carried and m.stands_for(plan, m.n, local, self._certifier.evaluate))
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)
             if cert.is_equilibrium or round_ == cfg.certify_rounds:
@@ -533,7 +540,7 @@ class Replanner:
             if adopted is None:
                 break
             plan, new_ref = adopted
-            plan, new_ref, used, moved = settle(plan, new_ref)
+            plan, new_ref, used, moved, searched = settle(plan, new_ref)
             spent += used
             if moved:  # a carried search fixed the others' paths as they were
                 carried = {}

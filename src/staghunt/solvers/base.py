@@ -58,7 +58,11 @@ class MethodRun:
     already a certified equilibrium and stops when it is (``None``: the usual stopping rule).
     ``certify``: if given (the run is certified), the certificate of a plan ``(N, K, 3)``, made
     with the run's certificate options and not counted in the budget (``game`` certifies each
-    start's equilibrium to select among them); ``None``: no certificates."""
+    start's equilibrium to select among them); ``None``: no certificates. Both take, after the
+    plan, the local searches already made from it (:class:`~staghunt.solvers.local.LocalSearch`,
+    ``searched=``), which the certificate takes instead of making them again. ``workers``:
+    independent searches (``game``'s local check) that may run side by side, one thread each
+    (``evaluator`` is then thread-safe)."""
 
     scenario: Scenario
     settings: SolverSettings
@@ -66,8 +70,9 @@ class MethodRun:
     progress: Progress | None = None
     runner: SwarmRunner = run_swarm
     evaluator: Evaluator = evaluate
-    certified: Callable[[np.ndarray], bool] | None = None
-    certify: Callable[[np.ndarray], Certificate] | None = None
+    certified: Callable[..., bool] | None = None
+    certify: Callable[..., Certificate] | None = None
+    workers: int = 1
 
 
 Method = Callable[[MethodRun], SolverOutput]

@@ -46,7 +46,7 @@ from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.independent import solo_model
-from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP, local_pass, polish
+from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP, LocalSearch, local_pass, polish
 from staghunt.solvers.problem import solo_problem, team_problem
 from staghunt.solvers.response import (DEFAULT_EPSILON, DEFAULT_ITERATIONS, DEFAULT_PARTICLES, Certificate,
                                        LOCAL_SHARE as CERTIFICATE_LOCAL_SHARE)
@@ -262,7 +262,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                          on_reply: Callable[[int, np.ndarray], None] | None = None,
                          repair: bool = False, reply_start: float = REPLY_START,
                          azimuth: float = ANGLE_RANGE,
-                         certified: Callable[[np.ndarray], bool] | None = None) -> RoundsOutcome:
+                         certified: Callable[..., bool] | None = None, workers: int = 1) -> RoundsOutcome:
     """Steps 2-4 of the method from the allocation ``plan`` ``(N, K, 3)``: best-response
     rounds until they converge or ``budget`` path evaluations (``spent`` of them already used)
     are spent. ``on_reply(spent, J)`` follows every reply.
@@ -273,13 +273,15 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     Without ``repair`` only feasible improvements are ever accepted. ``reply_start``: the first
     reply budget as a share of the budget left (a warm re-plan starts near an equilibrium and
     gains from few strong replies rather than many weak ones). ``azimuth``: half-width of the
-    replies' heading range (:func:`~staghunt.encoding.search_space`). ``certified(plan)``:
-    after a round that leaves the plan feasible with no reply gaining more than
+    replies' heading range (:func:`~staghunt.encoding.search_space`). ``certified(plan,
+    searched=)``: after a round that leaves the plan feasible with no reply gaining more than
     :data:`EPSILON`, first lets every UAV make a local search (:func:`polish`,
-    :data:`LOCAL_CHECK_EVALUATIONS`, counted in the budget) and takes a gain beyond
-    :data:`EPSILON` as a reply (the round's ``local_check_gains``); otherwise asks whether the
-    plan is a certified equilibrium, and if so the rounds stop (converged; the round's
-    ``certified`` flag says so). The certificate is not counted in the budget."""
+    :data:`LOCAL_CHECK_EVALUATIONS`, counted in the budget; ``workers`` of them side by side,
+    :func:`~staghunt.solvers.local.local_pass`) and takes a gain beyond :data:`EPSILON` as a
+    reply (the round's ``local_check_gains``); otherwise asks whether the plan is a certified
+    equilibrium, handing it these searches (the certificate's own from the plan), and if so
+    the rounds stop (converged; the round's ``certified`` flag says so). The certificate is not
+    counted in the budget."""
     N, P = model.n_uavs, settings.particles
     plan = np.array(plan, dtype=float)
     current = evaluator(model, plan[None])
@@ -332,14 +334,13 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
             # Before the certificate: each UAV's local search from the plan, the one the
             # certificate also makes (a quarter of its default budget); a gain beyond epsilon is
             # a better reply, taken, and the rounds go on without a certificate that would fail.
-            plan, J, local_gains, used = local_pass(model, plan, J, LOCAL_CHECK_EVALUATIONS, EPSILON, evaluator,
-                                                    budget - spent)
-            spent += used
+            done = local_pass(model, plan, J, LOCAL_CHECK_EVALUATIONS, EPSILON, evaluator, budget - spent, workers)
+            plan, J, local_gains, spent = done.plan, done.costs, done.gains, spent + done.evaluations
             accepted += int(np.count_nonzero(local_gains))
             gains = np.maximum(gains, local_gains)  # no growth of the replies after a gain
             rounds[-1]["local_check_gains"] = local_gains.tolist()
             if not local_gains.any():
-                rounds[-1]["certified"] = converged = bool(certified(plan))
+                rounds[-1]["certified"] = converged = bool(certified(plan, searched=done.searches))
         if gains.max() < GROW_BELOW:
             reply_evals *= 2
     return RoundsOutcome(plan, J, int(spent), rounds, accepted, converged)
@@ -449,12 +450,12 @@ def solve_game(run: MethodRun) -> SolverOutput:
         if progress is not None:
             progress(min(I, max(0, last - 1)), I, J_now.copy())
 
-    def certificate(plan: np.ndarray) -> Certificate | None:
-        return run.certify(plan) if run.certify is not None else None
+    def certificate(plan: np.ndarray, searched: tuple[LocalSearch, ...] = ()) -> Certificate | None:
+        return run.certify(plan, searched=searched) if run.certify is not None else None
 
     # A single start keeps its stopping rule (the run's); several stop at their first certified plan.
     explore_stop = run.certified if S == 1 else (
-        (lambda wp: certificate(wp).is_equilibrium) if run.certify is not None else None)
+        (lambda wp, searched=(): certificate(wp, searched).is_equilibrium) if run.certify is not None else None)
     # stop="certified" (run.certified): the run itself ends at its first certified equilibrium,
     # with the starts after it left unsearched.
     first_certified = run.certified is not None and S > 1
@@ -493,7 +494,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
                                    "evaluations": int(spent - before)})
                     break
         out = best_response_rounds(model, start, settings, rng, runner, evaluator, cap, spent, record,
-                                   repair=kind != "rigid", certified=explore_stop)
+                                   repair=kind != "rigid", certified=explore_stop, workers=run.workers)
         spent = out.evaluations
         c = evaluate(model, out.plan[None])
         cert = certificate(out.plan) if c.total_violation[0] == 0 else None

@@ -9,9 +9,13 @@ little; this search moves one coordinate at a time in the site frame.
 
 from __future__ import annotations
 
+from concurrent.futures import Future, wait
+from dataclasses import dataclass
+
 import numpy as np
 
 from staghunt.costs import CostModel, Evaluator, evaluate
+from staghunt.solvers.swarm import shared_pool
 
 ACCEPT_TOL = 1e-9
 """A reply is accepted if it lowers ``J_n`` by more than this (relative)."""
@@ -91,19 +95,88 @@ def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray,
     return np.where(c.total_violation == 0, c.total[:, n], np.inf)
 
 
+def arithmetic(evaluator: Evaluator) -> str:
+    """The name of the engine whose arithmetic ``evaluator`` uses (``"numpy"`` for the reference
+    :func:`staghunt.costs.evaluate`): two searches in the same arithmetic make the same decisions."""
+    return str(getattr(getattr(evaluator, "__self__", None), "name", "numpy"))
+
+
+@dataclass(frozen=True, eq=False)
+class LocalSearch:
+    """UAV ``n``'s local search (:func:`polish`) from ``plan`` ``(N, K, 3)`` with at most
+    ``budget`` path evaluations in ``arithmetic`` (:func:`arithmetic`): the ``(K, 3)`` ``path`` it
+    ends on (``plan[n]`` if nothing improved) and the ``evaluations`` it spent. The certificate
+    (:func:`staghunt.solvers.response.certify_plan`) takes it instead of making the same search
+    again (:meth:`stands_for`): the same computation, so the same result."""
+
+    plan: np.ndarray
+    n: int
+    budget: int
+    arithmetic: str
+    path: np.ndarray
+    evaluations: int
+
+    def stands_for(self, plan: np.ndarray, n: int, budget: int, evaluator: Evaluator) -> bool:
+        """Whether this is :func:`polish` ``(plan, n, budget, evaluator)``'s search."""
+        return (self.n == n and self.budget == budget and self.arithmetic == arithmetic(evaluator)
+                and self.plan.shape == plan.shape and bool(np.array_equal(self.plan, plan)))
+
+    def moved(self, plan: np.ndarray) -> np.ndarray:
+        """What :func:`polish` returns for this search of ``plan``: ``plan`` itself if nothing
+        improved, else a copy with UAV ``n``'s path replaced."""
+        if np.array_equal(self.path, plan[self.n]):
+            return plan
+        out = plan.copy()
+        out[self.n] = self.path
+        return out
+
+
+@dataclass(frozen=True, eq=False)
+class LocalPass:
+    """What :func:`local_pass` ends with: the ``(N, K, 3)`` ``plan``, its ``(N,)`` ``costs``, the
+    ``(N,)`` relative ``gains`` taken (0 where none), the path ``evaluations`` spent and the
+    ``searches`` made (:class:`LocalSearch`, in order; those from the final plan stand for the
+    certificate's searches of it)."""
+
+    plan: np.ndarray
+    costs: np.ndarray
+    gains: np.ndarray
+    evaluations: int
+    searches: tuple[LocalSearch, ...]
+
+
 def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, epsilon: float,
-               evaluator: Evaluator = evaluate, limit: float = np.inf) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+               evaluator: Evaluator = evaluate, limit: float = np.inf, workers: int = 1) -> LocalPass:
     """Every UAV in turn makes a local search (:func:`polish`, ``per_uav`` evaluations) from the
     feasible ``plan`` ``(N, K, 3)`` with costs ``J`` ``(N,)``; a path that lowers its ``J_n`` by
     more than ``epsilon`` (relative) and keeps the plan feasible is taken. No search starts that
-    could take the evaluations past ``limit``. Returns the plan, its costs, the ``(N,)`` relative
-    gains taken (0 where none) and the path evaluations spent."""
-    gains = np.zeros(len(J))
+    could take the evaluations past ``limit``.
+
+    ``workers > 1``: the next ``workers`` searches are made side by side from the current plan
+    (``evaluator`` must then be thread-safe, e.g. an engine's ``evaluate``), and each stands until
+    a gain changes the plan; the ones made before a gain are dropped and made again from the
+    new plan. The same decisions as one at a time, so the same result; a pass that takes
+    nothing (the last one before a certificate) runs about ``workers`` times as wide, and no
+    pass runs slower than its wasted searches allow (at most ``workers - 1`` per gain)."""
+    N = len(J)
+    gains = np.zeros(N)
     spent = 0
-    for n in range(len(J)):
+    searches: list[LocalSearch] = []
+    kind = arithmetic(evaluator)
+    pool = shared_pool(workers, "local") if workers > 1 and N > 1 else None
+    ahead: dict[int, Future[tuple[np.ndarray, int]]] = {}
+    dropped: list[Future[tuple[np.ndarray, int]]] = []
+    for n in range(N):
         if spent + per_uav > limit:
             break
-        moved, used = polish(model, plan, n, per_uav, evaluator)
+        if pool is not None:
+            for m in range(n, min(N, n + workers)):
+                if m not in ahead:
+                    ahead[m] = pool.submit(polish, model, plan, m, per_uav, evaluator)
+            moved, used = ahead.pop(n).result()
+        else:
+            moved, used = polish(model, plan, n, per_uav, evaluator)
+        searches.append(LocalSearch(np.array(plan), n, per_uav, kind, np.array(moved[n]), used))
         spent += used
         if moved is plan:
             continue
@@ -112,4 +185,7 @@ def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, 
         if c.total_violation[0] == 0 and c.total[0, n] < J[n] * (1.0 - epsilon):
             gains[n] = (J[n] - c.total[0, n]) / J[n]
             plan, J = moved, c.total[0]
-    return plan, J, gains, spent
+            dropped.extend(f for f in ahead.values() if not f.cancel())  # made from the plan before
+            ahead = {}
+    wait([*dropped, *ahead.values()])  # nothing left running on return
+    return LocalPass(plan, J, gains, spent, tuple(searches))

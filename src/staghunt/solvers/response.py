@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 import threading
 from dataclasses import dataclass
-from typing import Callable, Mapping
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -62,7 +62,7 @@ from staghunt.encoding import ANGLE_RANGE, decode, encode
 from staghunt.inputs import check_waypoints
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
 from staghunt.solvers.base import RequestError, check_seed
-from staghunt.solvers.local import polish
+from staghunt.solvers.local import LocalSearch, polish
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm, shared_pool
 
@@ -264,6 +264,7 @@ def certify_plan(
     workers: int = 1,
     carried: Mapping[int, UAVGap] | None = None,
     evaluator: Evaluator = evaluate,
+    searched: Sequence[LocalSearch] = (),
 ) -> Certificate:
     """Nash gaps of the team plan of ``request`` (:func:`check_certify`, run as checked): each
     UAV's search with the request's budget, seed and swarm parameters (``c0``, ``damping``,
@@ -280,7 +281,11 @@ def certify_plan(
     problem (the others' paths) is the one that search fixed, and the UAV now flies a path of
     its own. Its search is not run again: its best deviation is compared with the plan's cost
     (the UAV flies that search's best reply after a certificate round: gap 0), and a note says
-    so.
+    so. ``searched``: local searches already made (:func:`staghunt.solvers.local.local_pass`
+    before a certificate); one that is exactly a search the certificate would make (the same
+    plan, UAV, budget and arithmetic: :meth:`~staghunt.solvers.local.LocalSearch.stands_for`)
+    is taken instead of being made again. The certificate is the same, its evaluations
+    included.
 
     On an engine of choice, with the plan's site and memory checked too:
     :func:`staghunt.analysis.certify.certify_on_engine`.
@@ -330,7 +335,11 @@ def certify_plan(
                 continue
             team = wp.copy()
             team[n] = origin
-            moved, used = polish(model, team, n, local, evaluator)
+            made = next((m for m in searched if m.stands_for(team, n, local, evaluator)), None)
+            if made is not None:  # made just before, from this plan: the same search
+                moved, used = made.moved(team), made.evaluations
+            else:
+                moved, used = polish(model, team, n, local, evaluator)
             spent += used
             if moved is not team:
                 c = evaluate(model, moved[None])
@@ -343,9 +352,9 @@ def certify_plan(
         deviation.setflags(write=False)
         return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, spent), note
 
-    searched = len(names) - len(carried or ())
-    if workers > 1 and feasible and searched > 1:
-        found = list(shared_pool(min(workers, searched), "certify").map(search, range(len(names))))
+    to_search = len(names) - len(carried or ())
+    if workers > 1 and feasible and to_search > 1:
+        found = list(shared_pool(min(workers, to_search), "certify").map(search, range(len(names))))
     else:
         found = [search(n) for n in range(len(names))]
     gaps = [g for g, _ in found]
