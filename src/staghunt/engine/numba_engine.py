@@ -329,14 +329,17 @@ def _evaluation_pass(ma: ModelArrays, N: int, K: int, Q: int) -> _Pass:
         runs = _evaluation_passes.runs = {}
     key = (id(ma), N, K, Q)
     entry = runs.pop(key, None)
-    if entry is None or entry[0] is not ma:
+    if entry is not None and entry[0] is not ma:  # another model at a freed model's address
+        entry[1].release()
+        entry = None
+    if entry is None:
         run = _Pass(ma, no_swarm(N, K), N, K, 0, 1, 0, wp=np.empty((Q, N, K, 3)))
         run.mode = kn.MODE_EVALUATE
-        run.scratch = [Scratch(N, K, 0, run.B)]
+        run.ensure_scratch(1)  # from the pool, given back when the pass is dropped
         entry = (ma, run)
     runs[key] = entry  # the most recent last
     while len(runs) > EVALUATION_PASSES:
-        del runs[next(iter(runs))]
+        runs.pop(next(iter(runs)))[1].release()
     return entry[1]
 
 
