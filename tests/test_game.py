@@ -335,6 +335,8 @@ def test_the_certificate_takes_the_local_searches_made_just_before(scenario1, mo
     assert [(u.current, u.best, u.gap, u.evaluations) for u in alone.uavs] == \
         [(u.current, u.best, u.gap, u.evaluations) for u in taken.uavs]
     assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(alone.uavs, taken.uavs))
+    assert [u.taken for u in taken.uavs] == [m.evaluations for m in done.searches]
+    assert all(u.taken == 0 for u in alone.uavs)
     other = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget + 1, 0.01, engine.evaluate)
     before = len(calls)
     certify_plan(request, **kw, searched=other.searches)

@@ -498,10 +498,7 @@ class Replanner:
             request = CertifyRequest.of_checked(sub, plan, self.search, options, int(self.rng.integers(2**31)))
             cert = certify_plan(request, runner=self._certifier.run_swarm, azimuth=azimuth, workers=self._workers,
                                 carried=carried, evaluator=self._certifier.evaluate, searched=searched)
-            # the local searches it took from settle() are counted there already
-            spent += sum(u.evaluations for u in cert.uavs) - sum(
-                m.evaluations for m in searched
-                if m.n not in carried and m.stands_for(plan, m.n, local, self._certifier.evaluate))
+            spent += sum(u.evaluations - u.taken for u in cert.uavs)  # settle() counted what it took
             if best is None or cert.max_relative_gap < best[1].max_relative_gap:
                 best = (new_ref, cert)
             if cert.is_equilibrium or round_ == cfg.certify_rounds:

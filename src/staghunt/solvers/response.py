@@ -176,7 +176,8 @@ class UAVGap:
     - ``deviation``: ``(K, 3)`` free waypoints ``(x, y, h)`` of the best response found, or ``None``.
     - ``roundtrip_error``: metres between the decoded warm start and the current path.
     - ``evaluations``: single-UAV path evaluations spent (``particles * (iterations + 1)`` in
-      the swarm, plus the local searches').
+      the swarm, plus the local searches'); ``taken``: how many of them a local search made
+      before the certificate spent (``certify_plan``'s ``searched``), counted by its maker too.
     """
 
     name: str
@@ -187,6 +188,7 @@ class UAVGap:
     deviation: np.ndarray | None
     roundtrip_error: float
     evaluations: int
+    taken: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -328,7 +330,7 @@ def certify_plan(
         deviation = np.array(out.best_waypoints[n])
         if out.best_violation > 0 or not math.isfinite(best):
             best, deviation = float(J[n]), wp[n].copy()  # only when the warm start itself broke
-        spent = out.path_evaluations
+        spent, taken = out.path_evaluations, 0
         local = int(LOCAL_SHARE * spent)
         for origin in (wp[n], deviation):  # the local searches (module docstring)
             if origin is deviation and np.array_equal(deviation, wp[n]):
@@ -338,6 +340,7 @@ def certify_plan(
             made = next((m for m in searched if m.stands_for(team, n, local, evaluator)), None)
             if made is not None:  # made just before, from this plan: the same search
                 moved, used = made.moved(team), made.evaluations
+                taken += used
             else:
                 moved, used = polish(model, team, n, local, evaluator)
             spent += used
@@ -350,7 +353,7 @@ def certify_plan(
             deviation = wp[n].copy()
         relative = gap / float(J[n]) if J[n] != 0 else (0.0 if gap == 0 else math.inf)
         deviation.setflags(write=False)
-        return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, spent), note
+        return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, spent, taken), note
 
     to_search = len(names) - len(carried or ())
     if workers > 1 and feasible and to_search > 1:
