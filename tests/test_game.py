@@ -166,17 +166,35 @@ def test_certificate_refuses_settings_that_disable_the_search(scenario1, reduced
 
 
 def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduced):
-    """Certificate searches run concurrently (one compiled thread each) give the very same
-    certificate as one after the other (each UAV's search has its own seed)."""
+    """Certificate searches run concurrently (the UAVs' swarms and local searches as separate
+    tasks, one compiled thread each) give the very same certificate as one after the other
+    (each UAV's search has its own seed), evaluations included, on two or three workers."""
     from staghunt.engine import get_engine
 
     _, game, _ = reduced
-    runner = get_engine("numba", threads=1).run_swarm
+    engine = get_engine("numba", threads=1)
     request = check_certify(scenario1, game.waypoints, CertifyOptions(particles=60, iterations=20), seed=4)
-    one = certify_plan(request, runner=runner, workers=1)
-    two = certify_plan(request, runner=runner, workers=2)
-    assert [(u.current, u.best, u.gap) for u in one.uavs] == [(u.current, u.best, u.gap) for u in two.uavs]
-    assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, two.uavs))
+    one = certify_plan(request, runner=engine.run_swarm, workers=1, evaluator=engine.evaluate)
+    assert sum(u.evaluations for u in one.uavs) > 3 * 60 * 21  # the local searches ran
+    for workers in (2, 3):
+        many = certify_plan(request, runner=engine.run_swarm, workers=workers, evaluator=engine.evaluate)
+        fields = [(u.current, u.best, u.gap, u.relative, u.roundtrip_error, u.evaluations, u.taken)
+                  for u in many.uavs]
+        assert fields == [(u.current, u.best, u.gap, u.relative, u.roundtrip_error, u.evaluations, u.taken)
+                          for u in one.uavs]
+        assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, many.uavs))
+
+
+def test_a_failing_search_side_by_side_raises_in_the_caller(scenario1, reduced):
+    """An error in one of the certificate's concurrent searches reaches the caller as itself."""
+    _, game, _ = reduced
+
+    def broken(*args, **kwargs):
+        raise RuntimeError("search failed")
+
+    request = check_certify(scenario1, game.waypoints, CertifyOptions(particles=20, iterations=5), seed=1)
+    with pytest.raises(RuntimeError, match="search failed"):
+        certify_plan(request, runner=broken, workers=2)
 
 
 def test_stop_when_certified_returns_the_certificate_it_stopped_on(scenario1):

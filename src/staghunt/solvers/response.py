@@ -52,8 +52,9 @@ from __future__ import annotations
 
 import math
 import threading
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
-from typing import Callable, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -276,9 +277,10 @@ def certify_plan(
     ``runner``: what runs the searches (an engine's ``run_swarm``) and ``evaluator`` the local
     searches (an engine's ``evaluate``); the plan's costs, and the local searches' results, are
     always evaluated with the NumPy reference. ``azimuth``: half-width of the deviations' heading
-    range (the strategy space the plan was solved in). ``workers``: UAV searches run at once
-    (threads; each search has its own generator, so the certificate is the same for any
-    count; ``runner`` must then be thread-safe, e.g. a compiled engine pinned to one thread).
+    range (the strategy space the plan was solved in). ``workers``: searches run at once
+    (threads; each UAV's swarm and its local searches are separate tasks, :func:`_side_by_side`;
+    each swarm has its own generator, so the certificate is the same for any count; ``runner``
+    must then be thread-safe, e.g. a compiled engine pinned to one thread).
     ``carried``: searches made for an earlier plan that stand for this one, by UAV: UAV ``n``'s
     problem (the others' paths) is the one that search fixed, and the UAV now flies a path of
     its own. Its search is not run again: its best deviation is compared with the plan's cost
@@ -302,13 +304,9 @@ def certify_plan(
     feasible = bool(current.total_violation[0] == 0 and np.all(np.isfinite(J)))
     lock = threading.Lock()
 
-    def search(n: int) -> tuple[UAVGap, str | None]:
-        name = names[n]
-        if not feasible:
-            return UAVGap(name, float(J[n]), None, math.inf, math.inf, None, 0.0, 0), None
-        if carried is not None and n in carried:
-            return _carried(carried[n], float(J[n]), wp[n])
-        problem = solo_problem(model, wp, n, run_settings.velocity_fraction, azimuth)
+    def swarm(n: int) -> tuple[float, np.ndarray, int, float, str | None]:
+        """UAV ``n``'s swarm search: its best cost and path, evaluations, round trip, note."""
+        name, problem = names[n], problems[n]
         initial = encode(wp[n][None, None], problem.starts, problem.space)[0]  # (1, K, 3)
         warm = decode(initial[None], problem.starts, problem.lower, problem.upper)[0, 0]
         roundtrip = float(np.max(np.abs(warm - wp[n])))
@@ -330,38 +328,62 @@ def certify_plan(
         deviation = np.array(out.best_waypoints[n])
         if out.best_violation > 0 or not math.isfinite(best):
             best, deviation = float(J[n]), wp[n].copy()  # only when the warm start itself broke
-        spent, taken = out.path_evaluations, 0
-        local = int(LOCAL_SHARE * spent)
-        for origin in (wp[n], deviation):  # the local searches (module docstring)
-            if origin is deviation and np.array_equal(deviation, wp[n]):
-                continue
-            team = wp.copy()
-            team[n] = origin
-            made = next((m for m in searched if m.stands_for(team, n, local, evaluator)), None)
-            if made is not None:  # made just before, from this plan: the same search
-                moved, used = made.moved(team), made.evaluations
-                taken += used
-            else:
-                moved, used = polish(model, team, n, local, evaluator)
-            spent += used
-            if moved is not team:
-                c = evaluate(model, moved[None])
-                if c.total_violation[0] == 0 and float(c.total[0, n]) < best:
-                    best, deviation = float(c.total[0, n]), np.array(moved[n])
+        return best, deviation, out.path_evaluations, roundtrip, note
+
+    def local(n: int, origin: np.ndarray) -> tuple[float | None, np.ndarray, int, int]:
+        """UAV ``n``'s local search from ``origin`` (module docstring), or the one made just
+        before from this plan (``searched``): the ``J_n`` it reached (``None``: it did not
+        move, or not to a feasible plan), its path, its evaluations and those taken."""
+        team = wp.copy()
+        team[n] = origin
+        made = next((m for m in searched if m.stands_for(team, n, budgets[n], evaluator)), None)
+        if made is not None:  # made just before, from this plan: the same search
+            moved, used, taken = made.moved(team), made.evaluations, made.evaluations
+        else:
+            moved, used, taken = *polish(model, team, n, budgets[n], evaluator), 0
+        if moved is team:
+            return None, origin, used, taken
+        c = evaluate(model, moved[None])
+        reached = float(c.total[0, n]) if c.total_violation[0] == 0 else None
+        return reached, np.array(moved[n]), used, taken
+
+    def gap_of(n: int, searched_n: tuple[float, np.ndarray, int, float, str | None],
+               locals_n: list[tuple[float | None, np.ndarray, int, int]]) -> tuple[UAVGap, str | None]:
+        best, deviation, spent, roundtrip, note = searched_n
+        taken = 0
+        for reached, path, used, took in locals_n:  # from the plan, then from the swarm's best
+            spent, taken = spent + used, taken + took
+            if reached is not None and reached < best:
+                best, deviation = reached, path
         gap = max(0.0, float(J[n]) - best)
         if gap == 0.0:
             deviation = wp[n].copy()
         relative = gap / float(J[n]) if J[n] != 0 else (0.0 if gap == 0 else math.inf)
         deviation.setflags(write=False)
-        return UAVGap(name, float(J[n]), best, gap, relative, deviation, roundtrip, spent, taken), note
+        return UAVGap(names[n], float(J[n]), best, gap, relative, deviation, roundtrip, spent, taken), note
 
-    to_search = len(names) - len(carried or ())
-    if workers > 1 and feasible and to_search > 1:
-        found = list(shared_pool(min(workers, to_search), "certify").map(search, range(len(names))))
+    found: list[tuple[UAVGap, str | None] | None] = [None] * len(names)
+    todo = []
+    for n in range(len(names)):
+        if not feasible:
+            found[n] = UAVGap(names[n], float(J[n]), None, math.inf, math.inf, None, 0.0, 0), None
+        elif carried is not None and n in carried:
+            found[n] = _carried(carried[n], float(J[n]), wp[n])
+        else:
+            todo.append(n)
+    problems = {n: solo_problem(model, wp, n, run_settings.velocity_fraction, azimuth) for n in todo}
+    # Each local search has LOCAL_SHARE of its UAV's swarm budget (known before the swarm runs).
+    budgets = {n: int(LOCAL_SHARE * problems[n].path_evaluations(run_settings)) for n in todo}
+    if workers > 1 and len(todo) > 1:
+        for n, (s, locals_n) in _side_by_side(shared_pool(workers, "certify"), todo, swarm, local, wp).items():
+            found[n] = gap_of(n, s, locals_n)
     else:
-        found = [search(n) for n in range(len(names))]
-    gaps = [g for g, _ in found]
-    notes = [note for _, note in found if note is not None]
+        for n in todo:
+            s = swarm(n)
+            from_swarm = [] if np.array_equal(s[1], wp[n]) else [local(n, s[1])]
+            found[n] = gap_of(n, s, [local(n, wp[n]), *from_swarm])
+    gaps = [g for g, _ in found]  # type: ignore[misc]
+    notes = [note for _, note in found if note is not None]  # type: ignore[misc]
     return Certificate(
         uavs=tuple(gaps),
         epsilon=float(epsilon),
@@ -371,6 +393,37 @@ def certify_plan(
         seed=int(seed),
         notes=tuple(notes),
     )
+
+
+def _side_by_side(pool: ThreadPoolExecutor, todo: list[int], swarm: Callable[[int], Any],
+                  local: Callable[[int, np.ndarray], Any], wp: np.ndarray) -> dict[int, tuple[Any, list[Any]]]:
+    """:func:`certify_plan`'s searches on ``pool``, as tasks rather than one task per UAV (three
+    UAVs on two workers would leave one idle for a whole UAV): every UAV's ``swarm(n)``, the
+    longest, first; then every UAV's ``local(n, wp[n])`` (it needs no swarm); and each UAV's
+    ``local(n, best)`` from its swarm's best path as soon as that swarm ends (unless that path
+    is the plan's). The calling thread only waits. Returns, by UAV, its swarm's result and its
+    local searches' (from the plan, then from the swarm's best): the same computations as one
+    after the other."""
+    futures: list[Future] = []
+    try:
+        swarms = {pool.submit(swarm, n): n for n in todo}
+        futures.extend(swarms)
+        from_plan = {n: pool.submit(local, n, wp[n]) for n in todo}
+        futures.extend(from_plan.values())
+        ended: dict[int, Any] = {}
+        from_best: dict[int, Future] = {}
+        for f in as_completed(swarms):
+            n = swarms[f]
+            ended[n] = f.result()
+            if not np.array_equal(ended[n][1], wp[n]):
+                from_best[n] = pool.submit(local, n, ended[n][1])
+                futures.append(from_best[n])
+        return {n: (ended[n], [from_plan[n].result()] + ([from_best[n].result()] if n in from_best else []))
+                for n in todo}
+    except BaseException:
+        for f in futures:
+            f.cancel()
+        raise
 
 
 def _carried(earlier: UAVGap, current: float, path: np.ndarray) -> tuple[UAVGap, str]:
