@@ -529,6 +529,23 @@ def _uav_terms(nb, n, px, py, pz, ph, uav, cyl, prm, pedge, par, seg, sub, ang, 
         terms[n, 4, b] = acc[b]
 
 
+@njit(inline="always", error_model="numpy")
+def _pair_segment(x0: float, y0: float, z0: float, x1: float, y1: float, z1: float) -> tuple[float, float]:
+    """One segment of a pair, from the relative positions ``p_a - p_c`` at its ends: the squared
+    distance at its end and the least squared distance along it (closest approach, ``t``
+    clamped to ``[0, 1]``)."""
+    drx = x1 - x0
+    dry = y1 - y0
+    drz = z1 - z0
+    dd = (drx * drx + dry * dry) + drz * drz
+    t = (-((x0 * drx + y0 * dry) + z0 * drz)) / dd
+    t = min(max(t, 0.0), 1.0) if dd > 0.0 else 0.0
+    clx = x0 + t * drx
+    cly = y0 + t * dry
+    clz = z0 + t * drz
+    return (x1 * x1 + y1 * y1) + z1 * z1, (clx * clx + cly * cly) + clz * clz
+
+
 @subroutine
 def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, every, players,  # noqa: ANN001
                 form, hit, tmp, acc, acc2, flag, terms, vio, res) -> None:
@@ -652,27 +669,33 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
             # Segment j of the pair, lane by lane: the relative positions p_a - p_c (NumPy's
             # ``rel``) at its ends, the squared distance at its end (free waypoint j + 1, for
             # j < K) and, with ``continuous``, along it; one pass, no stored relative positions.
+            # With ``solo`` a fixed UAV has the same path in every lane: its coordinates are read
+            # once per segment instead of in every lane (the same numbers).
+            fixed_a = solo and not _is_player(players, a)
+            fixed_c = solo and not _is_player(players, c)
             for j in range(S):
                 if near[j] == 0 or not (continuous or j < K):
                     continue
-                for b in range(nb):
-                    x0 = px[a, j, b] - px[c, j, b]
-                    y0 = py[a, j, b] - py[c, j, b]
-                    z0 = pz[a, j, b] - pz[c, j, b]
-                    x1 = px[a, j + 1, b] - px[c, j + 1, b]
-                    y1 = py[a, j + 1, b] - py[c, j + 1, b]
-                    z1 = pz[a, j + 1, b] - pz[c, j + 1, b]
-                    dw[b] = (x1 * x1 + y1 * y1) + z1 * z1
-                    drx = x1 - x0
-                    dry = y1 - y0
-                    drz = z1 - z0
-                    dd = (drx * drx + dry * dry) + drz * drz
-                    t = (-((x0 * drx + y0 * dry) + z0 * drz)) / dd
-                    t = min(max(t, 0.0), 1.0) if dd > 0.0 else 0.0
-                    clx = x0 + t * drx
-                    cly = y0 + t * dry
-                    clz = z0 + t * drz
-                    ds[b] = (clx * clx + cly * cly) + clz * clz
+                if fixed_c:
+                    cx0, cy0, cz0 = px[c, j, 0], py[c, j, 0], pz[c, j, 0]
+                    cx1, cy1, cz1 = px[c, j + 1, 0], py[c, j + 1, 0], pz[c, j + 1, 0]
+                    for b in range(nb):
+                        dw[b], ds[b] = _pair_segment(px[a, j, b] - cx0, py[a, j, b] - cy0, pz[a, j, b] - cz0,
+                                                     px[a, j + 1, b] - cx1, py[a, j + 1, b] - cy1,
+                                                     pz[a, j + 1, b] - cz1)
+                elif fixed_a:
+                    ax0, ay0, az0 = px[a, j, 0], py[a, j, 0], pz[a, j, 0]
+                    ax1, ay1, az1 = px[a, j + 1, 0], py[a, j + 1, 0], pz[a, j + 1, 0]
+                    for b in range(nb):
+                        dw[b], ds[b] = _pair_segment(ax0 - px[c, j, b], ay0 - py[c, j, b], az0 - pz[c, j, b],
+                                                     ax1 - px[c, j + 1, b], ay1 - py[c, j + 1, b],
+                                                     az1 - pz[c, j + 1, b])
+                else:
+                    for b in range(nb):
+                        dw[b], ds[b] = _pair_segment(px[a, j, b] - px[c, j, b], py[a, j, b] - py[c, j, b],
+                                                     pz[a, j, b] - pz[c, j, b], px[a, j + 1, b] - px[c, j + 1, b],
+                                                     py[a, j + 1, b] - py[c, j + 1, b],
+                                                     pz[a, j + 1, b] - pz[c, j + 1, b])
                 for side in range(2):  # the pair's two UAVs, those whose rows are read
                     n = a if side == 0 else c
                     if not (keep_a if side == 0 else keep_c):
