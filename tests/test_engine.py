@@ -456,6 +456,44 @@ def test_compiled_polish_is_the_reference_loop(n_uavs, terrain):
     assert compared >= 20 and moved >= 10
 
 
+@pytest.mark.parametrize("terrain", [None, "bilinear"])
+@pytest.mark.parametrize("n_uavs", [3, 6])
+def test_compiled_team_search_is_the_reference_loop(n_uavs, terrain):
+    """``game``'s team slide and team polish in one compiled call each (``kernels.team_search``)
+    reach the very plan, spending the very evaluations, of their Python loops, for budgets that
+    end them mid-sweep and after they converged, plans near an obstacle and the site box's top
+    face (clamped moves), on flat ground and on a DEM; a plan they cannot improve is returned
+    as itself."""
+    import dataclasses
+
+    from staghunt.solvers.game import team_polish, team_slide
+
+    model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
+    model = dataclasses.replace(model, cylinders=frozen(np.array([[15.0, 50.0, 2.0]])))  # between two routes
+    K = 5
+    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
+    base = model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+    engine = NumbaEngine(threads=1)
+    rng = np.random.default_rng(5)
+    compared = moved = 0
+    for trial in range(8):
+        plan_ = np.clip(base + rng.normal(0.0, [2.0, 2.0, 3.0], size=base.shape), model.lower, model.upper)
+        if trial % 4 == 0:
+            plan_[:, 0, 2] = model.upper[2]  # on the box's top face: some moves are clamped
+        if evaluate(model, plan_[None]).total_violation[0] != 0:
+            continue
+        for search in (team_slide, team_polish):
+            for budget in (n_uavs * 31, n_uavs * 200, 20_000):
+                want, spent_want = search(model, plan_, budget, engine.evaluate, compiled=False)
+                got, spent_got = search(model, plan_, budget, engine.evaluate)
+                assert spent_got == spent_want
+                np.testing.assert_array_equal(got, want)
+                assert (got is plan_) == (want is plan_)
+                compared += 1
+                moved += got is not plan_
+    assert compared >= 24 and moved >= 12
+
+
 def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
     """The arguments bound from the kernels' parameter names (engine.arrays.kernel_args) are the
     very objects, in the order, that the hand-written calls they replaced passed."""

@@ -1210,6 +1210,100 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
+def team_search(slide, fractions, step, min_step, max_evaluations, spent, costs, lower, upper, ends,  # noqa: ANN001
+                best, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights, heads, tails,
+                mu, ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out,
+                vio_out, res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp,
+                acc, acc2, flag, terms, vio, form, hit, better, res, uav_entries, team_entries):
+    """The twin of :func:`staghunt.solvers.game.team_slide` (``slide``) or
+    :func:`~staghunt.solvers.game.team_polish` on the team plan ``best (N, K, 3)`` (costs
+    ``costs (N,)``, ``spent`` evaluations already spent) in one call: each sweep writes its
+    candidates to rows ``0 .. Q-1`` of ``wp`` (``Q`` = ``2 K`` slides of waypoint ``k`` of every
+    UAV towards its waypoint ``k - 1``, then ``k + 1``, by the current fraction of ``fractions``,
+    with ``ends (N, 2, 3)`` = start and goal at the ends; or ``6 K`` moves of one coordinate of
+    every UAV by ``+step``, then ``-step``), clamped to ``lower``, ``upper``; evaluates them in
+    ``MODE_EVALUATE`` and takes, among the feasible ones that Pareto-dominate ``costs`` (no UAV
+    worse, one better by more than ``1e-9`` relative), the first with the least key (the slide:
+    the product of ``J_n / costs_n``; the polish: the sum of ``J_n``; each in UAV order), else
+    the next fraction or half the step (down to ``min_step``), within ``max_evaluations``
+    (``N`` per candidate). The same candidates, costs and decisions as the Python loops, so the
+    same plan. Writes the plan into ``best`` and its costs into ``costs``; returns ``spent``."""
+    N = best.shape[0]
+    K = best.shape[1]
+    M = 3 * K
+    Q = 2 * K if slide else 6 * K
+    B = px.shape[2]
+    f = 0
+    while True:
+        if slide:
+            if f >= fractions.shape[0] or spent + N * Q > max_evaluations:
+                break
+            fraction = fractions[f]
+            for q in range(Q):
+                for n in range(N):
+                    for k in range(K):
+                        for c in range(3):
+                            v = best[n, k, c]
+                            if q == k:  # towards the waypoint before (the start for the first)
+                                o = ends[n, 0, c] if k == 0 else best[n, k - 1, c]
+                                v = v + fraction * (o - v)
+                            elif q == K + k:  # towards the waypoint after (the goal for the last)
+                                o = ends[n, 1, c] if k == K - 1 else best[n, k + 1, c]
+                                v = v + fraction * (o - v)
+                            wp[q, n, k, c] = min(max(v, lower[c]), upper[c])
+        else:
+            if not (step >= min_step and spent + N * Q <= max_evaluations):
+                break
+            for q in range(Q):
+                i = q % M
+                sign = 1.0 if q < M else -1.0
+                for n in range(N):
+                    for k in range(K):
+                        for c in range(3):
+                            m = sign if k * 3 + c == i else 0.0
+                            v = best[n, k, c] + step * m
+                            wp[q, n, k, c] = min(max(v, lower[c]), upper[c])
+        for q0 in range(0, Q, B):
+            nb = min(B, Q - q0)
+            _uav_pass(uav_entries, False, MODE_EVALUATE, q0, nb, 0, np.uint64(0), 0.0, X, V, PB, gbest, initial,
+                      sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx,
+                      sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
+            _team_pass(team_entries, False, MODE_EVALUATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu,
+                       ref_diff, par, form, hit, tmp, acc, acc2, flag, better, terms, vio, res, X, PB,
+                       pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out)
+        spent += N * Q
+        chosen = -1
+        least = np.inf
+        for q in range(Q):
+            if _deviation_cost(q, 0, vio_out, res_out) == np.inf:  # infeasible
+                continue
+            worse = False
+            gain = False
+            for n in range(N):
+                t = res_out[q, 2, n]
+                worse = worse or not (t <= costs[n])
+                gain = gain or t < costs[n] * (1.0 - 1e-9)
+            if worse or not gain:
+                continue
+            key = res_out[q, 2, 0] / costs[0] if slide else res_out[q, 2, 0]
+            for n in range(1, N):
+                key = key * (res_out[q, 2, n] / costs[n]) if slide else key + res_out[q, 2, n]
+            if chosen < 0 or key < least:
+                chosen = q
+                least = key
+        if chosen < 0:
+            if slide:
+                f += 1
+            else:
+                step /= 2
+            continue
+        best[:, :, :] = wp[chosen]
+        for n in range(N):
+            costs[n] = res_out[chosen, 2, n]
+    return spent
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
 def _deviation_cost(q, n, vio_out, res_out) -> float:  # noqa: ANN001
     """``J_n`` of evaluated row ``q``, ``inf`` if any of its violations is not zero."""
     for m in range(vio_out.shape[1]):

@@ -47,7 +47,7 @@ from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.swarm import Progress, SwarmOutcome
 
 if TYPE_CHECKING:
-    from staghunt.engine.deviations import Deviations
+    from staghunt.engine.deviations import Deviations, TeamSearch
 
 logger = logging.getLogger("staghunt.engine")
 
@@ -60,7 +60,7 @@ NOTIFY_AFTER_S = 1.0
 """When the cache index cannot be read: loading every kernel from a warm cache takes well under
 this; beyond it we are compiling."""
 
-HELPER_PHASES = (("uav_pass",), ("polish",))
+HELPER_PHASES = (("uav_pass",), ("polish", "team_search"))
 """What the helper subprocess compiles, in turn, while this process compiles the others: after
 each phase it writes a line to its stdout (``iterate`` and ``polish`` call both entries, and
 start once ``uav_pass`` is in the cache)."""
@@ -76,6 +76,8 @@ _prepare_lock = threading.Lock()
 UAV_PASS_PER_CALL = ("mode", "q0", "nb", "it", "key", "inertia")
 TEAM_PASS_PER_CALL = ("mode", "q0", "nb")
 POLISH_PER_CALL = ("n", "step", "min_step", "max_evaluations", "J0", "lower", "upper", "path")
+TEAM_SEARCH_PER_CALL = ("slide", "fractions", "step", "min_step", "max_evaluations", "spent", "costs", "lower",
+                        "upper", "ends", "best")
 """The kernel entries' leading parameters given at each call; the rest are bound by name
 (:func:`staghunt.engine.arrays.kernel_args`)."""
 
@@ -152,9 +154,9 @@ class _Pass:
             self.block(q0, min(self.B, p1 - q0), worker)
 
 
-ENTRIES = ("uav_pass", "team_pass", "select_global", "iterate", "polish")
-"""Compiled entry points; ``iterate`` calls the first three and ``polish`` the first two (through
-the entries' addresses: :func:`staghunt.engine.jit.entry_call`)."""
+ENTRIES = ("uav_pass", "team_pass", "select_global", "iterate", "polish", "team_search")
+"""Compiled entry points; ``iterate`` calls the first three, ``polish`` and ``team_search`` the
+first two (through the entries' addresses: :func:`staghunt.engine.jit.entry_call`)."""
 
 
 def _tiny(entries: Iterable[str]) -> None:
@@ -191,7 +193,7 @@ def _tiny(entries: Iterable[str]) -> None:
     run = _Pass(ma, sa, N, K, N, N, P)
     run.ensure_scratch(1)
     names = list(entries)
-    callers = "iterate" in names or "polish" in names  # they call both entries: load them here first
+    callers = bool({"iterate", "polish", "team_search"} & set(names))  # they call both entries: load them first
     kernel_names = [e for e in ("uav_pass", "team_pass") if e in names or callers]
     if kernel_names:
         run.block(0, P, 0, kernel_names)
@@ -206,6 +208,15 @@ def _tiny(entries: Iterable[str]) -> None:
         kn.polish(0, 1.0, 0.5, 0, 1.0, np.zeros(3), np.ones(3), path,
                   *kernel_args(kn.polish, dev, solo, players, dev.scratch[0], per_call=POLISH_PER_CALL))
         dev.release()
+    if "team_search" in names:  # a slide, then a polish, of the team (MODE_EVALUATE)
+        team = _Pass(ma, no_swarm(N, K), N, K, 0, 1, 0, wp=np.zeros((6 * K, N, K, 3)))
+        team.mode = kn.MODE_EVALUATE
+        team.ensure_scratch(1)
+        for fractions in (np.array([0.5]), np.zeros(0)):
+            kn.team_search(fractions.size > 0, fractions, 1.0, 0.5, 0, 0, np.ones(N), np.zeros(3), np.ones(3),
+                           np.zeros((N, 2, 3)), np.zeros((N, K, 3)),
+                           *kernel_args(kn.team_search, team, ma, sa, team.scratch[0], per_call=TEAM_SEARCH_PER_CALL))
+        team.release()
     if "iterate" in names:
         hist = np.zeros((3, N))
         for threads in sorted({1, min(2, kernel_threads())}):  # the serial loop, then the parallel one
@@ -253,8 +264,8 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
     loading takes longer than :data:`NOTIFY_AFTER_S`), ``notify`` (default: a warning on the
     ``staghunt.engine`` logger) is called once with a message saying what happens, and, with
     ``parallel``, a helper subprocess compiles :data:`HELPER_PHASES` into the shared cache
-    meanwhile: ``uav_pass`` while this process compiles ``team_pass``, then ``polish`` while
-    this process compiles ``iterate``. If the helper fails, this process compiles what is left.
+    meanwhile: ``uav_pass`` while this process compiles ``team_pass``, then ``polish`` and
+    ``team_search`` while this process compiles ``iterate``. If the helper fails, this process compiles what is left.
     """
     if _ready.is_set():
         return 0.0
@@ -298,14 +309,14 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
             reader.join(HELPER_TIMEOUT_S)
             if reader.is_alive():
                 helper.kill()
-        _tiny([e for e in ENTRIES if helper is None or e != "polish"])
+        _tiny([e for e in ENTRIES if helper is None or e not in HELPER_PHASES[-1]])
         if helper is not None:
             try:
                 helper.communicate(timeout=HELPER_TIMEOUT_S)
             except subprocess.TimeoutExpired:
                 helper.kill()
                 helper.communicate()
-            _tiny(["polish"])  # loads the helper's work (or compiles it here if it failed)
+            _tiny(HELPER_PHASES[-1])  # loads the helper's work (or compiles it here if it failed)
         _ready.set()
         return time.perf_counter() - t0
 
@@ -498,6 +509,14 @@ class NumbaEngine:
         """Same contract as :func:`staghunt.costs.evaluate`."""
         self.prepare()
         return evaluate(model, waypoints)
+
+    def team_search(self, model: CostModel, plan: np.ndarray) -> TeamSearch:
+        """The team slide and polish of ``plan`` in one compiled call each (see
+        :class:`staghunt.engine.deviations.TeamSearch`)."""
+        from staghunt.engine.deviations import TeamSearch
+
+        self.prepare()
+        return TeamSearch(model, plan)
 
     def deviations(self, model: CostModel, plan: np.ndarray, n: int) -> Deviations:
         """UAV ``n``'s deviation costs from the feasible ``plan`` (see

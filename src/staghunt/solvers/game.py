@@ -153,20 +153,28 @@ def _dominating(c: Any, J: np.ndarray) -> np.ndarray:
 
 
 def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
-                step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP) -> tuple[np.ndarray, int]:
+                step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP,
+                compiled: bool = True) -> tuple[np.ndarray, int]:
     """Pareto-improving pattern search that moves the whole team: each sweep evaluates the
     ``6 K`` plans with one coordinate of one waypoint moved by ``+-step`` for *every* UAV (the
     formation's shape is kept) and takes, among the feasible ones that Pareto-dominate the plan
-    (no UAV worse, one better, eq. (9a)), the one with the least summed cost; else ``step``
-    halves, down to ``min_step`` metres. A swarm in the spherical encoding leaves a formation
-    route metres from its local optimum; this finishes the descent without making any UAV
-    worse off. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the path
-    evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
+    (no UAV worse, one better, eq. (9a)), the one with the least summed cost (summed in UAV
+    order; the first on a tie); else ``step`` halves, down to ``min_step`` metres. A swarm in the
+    spherical encoding leaves a formation route metres from its local optimum; this finishes
+    the descent without making any UAV worse off. Returns the ``(N, K, 3)`` plan (``plan``
+    itself if nothing improved) and the path evaluations spent (``N`` per candidate,
+    ``<= max_evaluations``). On the compiled engine (``compiled``) the whole search is one
+    compiled call making the same decisions on the same costs
+    (:class:`~staghunt.engine.deviations.TeamSearch`); this loop is its reference."""
     N, K = plan.shape[0], plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, 1, K, 3)
     J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 6 * K)
     if J is None:
         return plan, spent
+    engine = getattr(evaluator, "__self__", None)
+    if compiled and hasattr(engine, "team_search"):
+        found, spent = engine.team_search(model, plan).search(J, max_evaluations, spent, step=step, min_step=min_step)
+        return (plan if np.array_equal(found, plan) else found), spent
     best = plan
     while step >= min_step and spent + N * 6 * K <= max_evaluations:
         cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
@@ -176,28 +184,45 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
         if not better.any():
             step /= 2
             continue
-        i = np.flatnonzero(better)[np.argmin(c.total[better].sum(axis=1))]
+        i = np.flatnonzero(better)[np.argmin(_in_order(c.total[better], np.add))]
         best, J = cands[i], c.total[i]
     return best, spent
 
 
+def _in_order(total: np.ndarray, op: np.ufunc) -> np.ndarray:
+    """``(Q,)`` ``op`` (``np.add``, ``np.multiply``) of the columns of ``total`` ``(Q, N)`` taken
+    in UAV order, ``((t_0 op t_1) op t_2) ...``: the arithmetic of the compiled twin."""
+    out = total[:, 0].copy()
+    for n in range(1, total.shape[1]):
+        out = op(out, total[:, n])
+    return out
+
+
 def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
-               fractions: tuple[float, ...] = SLIDE_FRACTIONS) -> tuple[np.ndarray, int]:
+               fractions: tuple[float, ...] = SLIDE_FRACTIONS, compiled: bool = True) -> tuple[np.ndarray, int]:
     """Pareto-improving search over *when* the team passes where: each sweep evaluates the
     ``2 K`` plans with waypoint ``k`` of *every* UAV moved the same ``fraction`` of the way
     towards its waypoint ``k - 1`` or ``k + 1`` (the start or the goal at the ends), and takes,
     among the feasible ones that Pareto-dominate the plan (no UAV worse, one better, eq. (9a)),
-    the one with the least ``sum_n ln J_n``; else the next, smaller fraction. The waypoints are
+    the one with the least ``sum_n ln J_n`` (the least product of ``J_n`` over the plan's
+    ``J_n``, multiplied in UAV order: the same order without logarithms, whose last bit differs
+    between libraries; the first on a tie); else the next, smaller fraction. The waypoints are
     synchronised, so sliding them along the team's route changes the formation error at each
     waypoint and the separations, for all UAVs at once: the equilibria selected on different
     seeds of scenario 2 differed mostly in this (the same route, its waypoints spaced
     differently), which neither a one-coordinate move (:func:`team_polish`) nor a UAV alone
     can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
-    path evaluations spent (``N`` per candidate, ``<= max_evaluations``)."""
+    path evaluations spent (``N`` per candidate, ``<= max_evaluations``). On the compiled engine
+    (``compiled``) the whole search is one compiled call making the same decisions
+    (:class:`~staghunt.engine.deviations.TeamSearch`); this loop is its reference."""
     N, K = plan.shape[0], plan.shape[1]
     J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 2 * K)
     if J is None:
         return plan, spent
+    engine = getattr(evaluator, "__self__", None)
+    if compiled and hasattr(engine, "team_search"):
+        found, spent = engine.team_search(model, plan).search(J, max_evaluations, spent, fractions=tuple(fractions))
+        return (plan if np.array_equal(found, plan) else found), spent
     best = plan
     starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
     rows = np.arange(K)
@@ -213,7 +238,7 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
             better = _dominating(c, J)
             if not better.any():
                 break
-            i = np.flatnonzero(better)[np.argmin(np.log(c.total[better]).sum(axis=1))]
+            i = np.flatnonzero(better)[np.argmin(_in_order(c.total[better] / J, np.multiply))]
             best, J = cands[i], c.total[i]
     return best, spent
 
