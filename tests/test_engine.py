@@ -419,6 +419,17 @@ def test_deviation_costs_match_the_full_evaluation(n_uavs, radii, terrain):
         assert np.isinf(got).any() and np.isfinite(got).any()
 
 
+def _straight_routes(n_uavs: int, terrain: str | None, K: int = 5) -> tuple[CostModel, np.ndarray]:
+    """A model of ``n_uavs`` with a cylinder between two routes (on flat ground or a DEM) and
+    its ``(N, K, 3)`` plan of straight start-goal lines."""
+    import dataclasses
+
+    model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
+    model = dataclasses.replace(model, cylinders=frozen(np.array([[15.0, 50.0, 2.0]])))  # between two routes
+    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
+    return model, model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+
+
 @pytest.mark.parametrize("terrain", [None, "bilinear"])
 @pytest.mark.parametrize("n_uavs", [3, 6])
 def test_compiled_polish_is_the_reference_loop(n_uavs, terrain):
@@ -426,15 +437,10 @@ def test_compiled_polish_is_the_reference_loop(n_uavs, terrain):
     spends the very evaluations, of its Python loop on the same deviation costs, for budgets
     that end it mid-sweep and after it converged, paths that start near obstacles and the site
     box's faces (clamped moves), on flat ground and on a DEM."""
-    import dataclasses
-
     from staghunt.solvers.local import polish
 
-    model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
-    model = dataclasses.replace(model, cylinders=frozen(np.array([[15.0, 50.0, 2.0]])))  # between two routes
-    K = 5
-    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
-    base = model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+    model, base = _straight_routes(n_uavs, terrain)
+    K = base.shape[1]
     engine = NumbaEngine(threads=1)
     rng = np.random.default_rng(11)
     compared = moved = 0
@@ -464,15 +470,9 @@ def test_compiled_team_search_is_the_reference_loop(n_uavs, terrain):
     end them mid-sweep and after they converged, plans near an obstacle and the site box's top
     face (clamped moves), on flat ground and on a DEM; a plan they cannot improve is returned
     as itself."""
-    import dataclasses
-
     from staghunt.solvers.game import team_polish, team_slide
 
-    model = make_model(n_uavs, terrain=None if terrain is None else dem(terrain, np.float64))
-    model = dataclasses.replace(model, cylinders=frozen(np.array([[15.0, 50.0, 2.0]])))  # between two routes
-    K = 5
-    t = (np.arange(1, K + 1) / (K + 1))[None, :, None]
-    base = model.starts[:, None, :] + t * (model.goals - model.starts)[:, None, :]
+    model, base = _straight_routes(n_uavs, terrain)
     engine = NumbaEngine(threads=1)
     rng = np.random.default_rng(5)
     compared = moved = 0
