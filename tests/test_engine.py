@@ -469,11 +469,14 @@ def test_compiled_team_search_is_the_reference_loop(n_uavs, terrain):
     reach the very plan, spending the very evaluations, of their Python loops, for budgets that
     end them mid-sweep and after they converged, plans near an obstacle and the site box's top
     face (clamped moves), on flat ground and on a DEM; a plan they cannot improve is returned
-    as itself."""
+    as itself. (After a cold compile the kernel may still be compiling beside the run: the
+    Python loop is used meanwhile, with the same results; here it is waited for.)"""
+    from staghunt.engine.numba_engine import team_search_ready
     from staghunt.solvers.game import team_polish, team_slide
 
     model, base = _straight_routes(n_uavs, terrain)
     engine = NumbaEngine(threads=1)
+    assert team_search_ready(wait=True) and engine.team_search(model, base) is not None
     rng = np.random.default_rng(5)
     compared = moved = 0
     for trial in range(8):
@@ -492,6 +495,29 @@ def test_compiled_team_search_is_the_reference_loop(n_uavs, terrain):
                 compared += 1
                 moved += got is not plan_
     assert compared >= 24 and moved >= 12
+
+
+def test_team_search_runs_the_python_loop_while_its_kernel_compiles(monkeypatch):
+    """After a cold compile the helper process may still be compiling ``team_search`` beside the
+    first run: the engine then offers no compiled search and ``team_slide`` runs its Python loop,
+    reaching the same plan; once the helper is done, the kernel is loaded and used."""
+    import threading
+
+    from staghunt.engine import numba_engine as ne
+    from staghunt.solvers.game import team_slide
+
+    model, base = _straight_routes(3, None)
+    engine = NumbaEngine(threads=1)
+    ne.prepare()
+    compiling = threading.Event()
+    monkeypatch.setattr(ne, "_later", {"done": compiling, "helper": None})
+    assert engine.team_search(model, base) is None and not ne.team_search_ready()
+    meanwhile = team_slide(model, base, 5000, engine.evaluate)
+    compiling.set()  # the helper has written it to the cache
+    assert engine.team_search(model, base) is not None and ne._later == {}
+    compiled = team_slide(model, base, 5000, engine.evaluate)
+    assert meanwhile[1] == compiled[1] and np.array_equal(meanwhile[0], compiled[0])
+    assert meanwhile[0] is not base
 
 
 def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():

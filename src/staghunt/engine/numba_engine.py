@@ -52,19 +52,24 @@ if TYPE_CHECKING:
 logger = logging.getLogger("staghunt.engine")
 
 COLD_COMPILE_ESTIMATE_S = 20
-"""Announced one-time compile: 18.5 s in two processes, 30 s in one, on a quiet 2-core VM
-(``uav_pass`` 10 s, ``team_pass`` 7 s, ``iterate`` 5 s, ``polish`` 5 s, ``team_search`` 3 s; 43 s
-and 63 s while ``iterate`` and ``polish`` compiled both entries again inside them;
-``benchmarks/README.md``)."""
+"""Announced one-time compile: 16.7-18.5 s in two processes (``team_search`` follows 0.4-1.7 s
+later, beside the run), 30 s in one, on a quiet 2-core VM (``uav_pass`` 10 s, ``team_pass`` 7 s,
+``iterate`` 5 s, ``polish`` 5 s, ``team_search`` 3 s; 43 s and 63 s while ``iterate`` and
+``polish`` compiled both entries again inside them; ``benchmarks/README.md``)."""
 
 NOTIFY_AFTER_S = 1.0
 """When the cache index cannot be read: loading every kernel from a warm cache takes well under
 this; beyond it we are compiling."""
 
-HELPER_PHASES = (("uav_pass",), ("polish", "team_search"))
+HELPER_PHASES = (("uav_pass",), ("polish",), ("team_search",))
 """What the helper subprocess compiles, in turn, while this process compiles the others: after
-each phase it writes a line to its stdout (``iterate`` and ``polish`` call both entries, and
-start once ``uav_pass`` is in the cache)."""
+each phase it writes a line to its stdout (``iterate``, ``polish`` and ``team_search`` call both
+entries, and start once ``uav_pass`` is in the cache). :func:`prepare` does not wait for the
+last phase (:data:`LATER`)."""
+LATER = ("team_search",)
+"""Entries a cold :func:`prepare` leaves to the helper while the run goes on: ``game``'s team
+search, whose Python loop makes the same decisions (:func:`team_search_ready`), so the first run
+does not wait 3 s more for it."""
 
 HELPER_TIMEOUT_S = 600
 """Longest wait for each of the helper's phases; beyond it the helper is killed and this process
@@ -72,6 +77,9 @@ compiles what is left."""
 
 _ready = threading.Event()
 _prepare_lock = threading.Lock()
+_later: dict[str, Any] = {}
+"""The helper still compiling :data:`LATER` (``"helper"``) and ``"done"``, an event set when it
+has, or has ended."""
 
 
 UAV_PASS_PER_CALL = ("mode", "q0", "nb", "it", "key", "inertia")
@@ -265,8 +273,9 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
     loading takes longer than :data:`NOTIFY_AFTER_S`), ``notify`` (default: a warning on the
     ``staghunt.engine`` logger) is called once with a message saying what happens, and, with
     ``parallel``, a helper subprocess compiles :data:`HELPER_PHASES` into the shared cache
-    meanwhile: ``uav_pass`` while this process compiles ``team_pass``, then ``polish`` and
-    ``team_search`` while this process compiles ``iterate``. If the helper fails, this process compiles what is left.
+    meanwhile: ``uav_pass`` while this process compiles ``team_pass``, then ``polish`` while
+    this process compiles ``iterate``, then :data:`LATER` while the run goes on. If the helper
+    fails, this process compiles what is left.
     """
     if _ready.is_set():
         return 0.0
@@ -304,23 +313,58 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True) 
                 helper.kill()
                 helper.communicate()
             raise errors[0]
-        if helper is not None and helper.stdout is not None:
-            # uav_pass is in the cache (or the helper ended, or hung and is killed: compiled here)
-            reader = threading.Thread(target=helper.stdout.readline, name="staghunt-engine-helper", daemon=True)
-            reader.start()
-            reader.join(HELPER_TIMEOUT_S)
-            if reader.is_alive():
-                helper.kill()
-        _tiny([e for e in ENTRIES if helper is None or e not in HELPER_PHASES[-1]])
+        phases = _follow(helper)  # an event per phase: in the cache, or the helper ended
+        if helper is not None and not phases[0].wait(HELPER_TIMEOUT_S):
+            helper.kill()  # hung: what is left is compiled here
+        _tiny([e for e in ENTRIES if helper is None or not any(e in phase for phase in HELPER_PHASES[1:])])
         if helper is not None:
-            try:
-                helper.communicate(timeout=HELPER_TIMEOUT_S)
-            except subprocess.TimeoutExpired:
+            if not phases[1].wait(HELPER_TIMEOUT_S):
                 helper.kill()
-                helper.communicate()
-            _tiny(HELPER_PHASES[-1])  # loads the helper's work (or compiles it here if it failed)
+            _tiny(HELPER_PHASES[1])  # loads the helper's work (or compiles it here if it failed)
+            _later.update(done=phases[2], helper=helper)
         _ready.set()
         return time.perf_counter() - t0
+
+
+def _follow(helper: subprocess.Popen[bytes] | None) -> list[threading.Event]:
+    """One event per :data:`HELPER_PHASES` entry, set when ``helper`` reports that phase done or
+    ends (all set at once without a helper)."""
+    events = [threading.Event() for _ in HELPER_PHASES]
+    if helper is None or helper.stdout is None:
+        for e in events:
+            e.set()
+        return events
+    stdout = helper.stdout
+
+    def read() -> None:
+        for i, _ in enumerate(iter(stdout.readline, b"")):
+            if i < len(events):
+                events[i].set()
+        helper.wait()
+        for e in events:
+            e.set()
+
+    threading.Thread(target=read, name="staghunt-engine-helper", daemon=True).start()
+    return events
+
+
+def team_search_ready(wait: bool = False) -> bool:
+    """Whether ``kernels.team_search`` can run in this process now: after a warm or a one-process
+    :func:`prepare`, yes; after a cold one, once the helper has compiled it (:data:`LATER`; it is
+    then loaded here). ``wait``: wait for the helper (or compile it here) instead of answering no."""
+    prepare()
+    done = _later.get("done")
+    if done is None:
+        return True
+    if not done.is_set() and not wait:
+        return False
+    if not done.wait(HELPER_TIMEOUT_S):
+        _later["helper"].kill()  # hung: compiled here
+    with _prepare_lock:
+        if _later.get("done") is done:
+            _tiny(LATER)  # loads the helper's work (or compiles it here if it failed)
+            _later.clear()
+    return True
 
 
 EVALUATION_PASSES = 8
@@ -512,13 +556,14 @@ class NumbaEngine:
         self.prepare()
         return evaluate(model, waypoints)
 
-    def team_search(self, model: CostModel, plan: np.ndarray) -> TeamSearch:
+    def team_search(self, model: CostModel, plan: np.ndarray) -> TeamSearch | None:
         """The team slide and polish of ``plan`` in one compiled call each (see
-        :class:`staghunt.engine.deviations.TeamSearch`)."""
+        :class:`staghunt.engine.deviations.TeamSearch`); ``None`` while the kernel is still being
+        compiled beside the first run (:func:`team_search_ready`): the caller's Python loop then
+        makes the same decisions."""
         from staghunt.engine.deviations import TeamSearch
 
-        self.prepare()
-        return TeamSearch(model, plan)
+        return TeamSearch(model, plan) if team_search_ready() else None
 
     def deviations(self, model: CostModel, plan: np.ndarray, n: int) -> Deviations:
         """UAV ``n``'s deviation costs from the feasible ``plan`` (see

@@ -171,9 +171,9 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
     J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 6 * K)
     if J is None:
         return plan, spent
-    engine = getattr(evaluator, "__self__", None)
-    if compiled and hasattr(engine, "team_search"):
-        found, spent = engine.team_search(model, plan).search(J, max_evaluations, spent, step=step, min_step=min_step)
+    fast = _team_search(model, plan, evaluator) if compiled else None
+    if fast is not None:
+        found, spent = fast.search(J, max_evaluations, spent, step=step, min_step=min_step)
         return (plan if np.array_equal(found, plan) else found), spent
     best = plan
     while step >= min_step and spent + N * 6 * K <= max_evaluations:
@@ -187,6 +187,13 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
         i = np.flatnonzero(better)[np.argmin(_in_order(c.total[better], np.add))]
         best, J = cands[i], c.total[i]
     return best, spent
+
+
+def _team_search(model: CostModel, plan: np.ndarray, evaluator: Evaluator) -> Any:
+    """The compiled team search of ``plan`` if ``evaluator`` is a compiled engine's and its kernel
+    is ready (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`), else ``None``."""
+    engine = getattr(evaluator, "__self__", None)
+    return engine.team_search(model, plan) if hasattr(engine, "team_search") else None
 
 
 def _in_order(total: np.ndarray, op: np.ufunc) -> np.ndarray:
@@ -219,9 +226,9 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
     J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 2 * K)
     if J is None:
         return plan, spent
-    engine = getattr(evaluator, "__self__", None)
-    if compiled and hasattr(engine, "team_search"):
-        found, spent = engine.team_search(model, plan).search(J, max_evaluations, spent, fractions=tuple(fractions))
+    fast = _team_search(model, plan, evaluator) if compiled else None
+    if fast is not None:
+        found, spent = fast.search(J, max_evaluations, spent, fractions=tuple(fractions))
         return (plan if np.array_equal(found, plan) else found), spent
     best = plan
     starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
