@@ -476,7 +476,8 @@ def test_compiled_team_search_is_the_reference_loop(n_uavs, terrain):
 
     model, base = _straight_routes(n_uavs, terrain)
     engine = NumbaEngine(threads=1)
-    assert team_search_ready(wait=True) and engine.team_search(model, base) is not None
+    J = engine.evaluate(model, base[None]).total[0]
+    assert team_search_ready(wait=True) and engine.team_search(model, base, J, 0, 0) is not None
     rng = np.random.default_rng(5)
     compared = moved = 0
     for trial in range(8):
@@ -511,10 +512,11 @@ def test_team_search_runs_the_python_loop_while_its_kernel_compiles(monkeypatch)
     ne.prepare()
     compiling = threading.Event()
     monkeypatch.setattr(ne, "_later", {"done": compiling, "helper": None})
-    assert engine.team_search(model, base) is None and not ne.team_search_ready()
+    J = engine.evaluate(model, base[None]).total[0]
+    assert engine.team_search(model, base, J, 0, 0) is None and not ne.team_search_ready()
     meanwhile = team_slide(model, base, 5000, engine.evaluate)
     compiling.set()  # the helper has written it to the cache
-    assert engine.team_search(model, base) is not None and ne._later == {}
+    assert engine.team_search(model, base, J, 0, 0) is not None and ne._later == {}
     compiled = team_slide(model, base, 5000, engine.evaluate)
     assert meanwhile[1] == compiled[1] and np.array_equal(meanwhile[0], compiled[0])
     assert meanwhile[0] is not base

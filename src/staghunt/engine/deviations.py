@@ -1,6 +1,6 @@
 """The local searches of ``game`` on the compiled kernels, each in one call: UAV ``n``'s
 deviation costs with the others' paths fixed (``MODE_DEVIATE``; its polish), and the team's
-slide and polish (:class:`TeamSearch`)."""
+slide and polish (:func:`team_search`)."""
 
 from __future__ import annotations
 
@@ -11,8 +11,8 @@ import numpy as np
 from staghunt.costs import CostModel
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import kernel_args, no_swarm
-from staghunt.engine.numba_engine import (POLISH_PER_CALL, TEAM_SEARCH_PER_CALL, _model_arrays_cached, _Pass,
-                                         evaluate)
+from staghunt.engine.numba_engine import (POLISH_PER_CALL, TEAM_SEARCH_PER_CALL, _evaluation_pass,
+                                         _model_arrays_cached, _Pass, evaluate)
 from staghunt.engine.scratch import Scratch
 
 
@@ -75,40 +75,24 @@ class Deviations:
         return np.where(clear, run.res_out[:, 2, self.n], np.inf)
 
 
-class TeamSearch:
-    """:func:`staghunt.solvers.game.team_slide` and :func:`~staghunt.solvers.game.team_polish`
-    of the team plan ``plan`` ``(N, K, 3)`` in one compiled call each
-    (:func:`staghunt.engine.kernels.team_search`): the same candidates, costs and decisions as
-    the Python loops (kept as their reference), so the same plan and evaluations. A sweep of
-    ``2 K`` or ``6 K`` plans costs about the kernels' time alone, where the loop paid about
-    three times that in array building, a Python call and the choice between candidates."""
 
-    def __init__(self, model: CostModel, plan: np.ndarray) -> None:
-        self.plan = np.array(plan, dtype=np.float64, order="C", copy=True)
-        N, K = self.plan.shape[0], self.plan.shape[1]
-        self.ma = _model_arrays_cached(model)
-        self.sa = no_swarm(N, K)
-        self.lower = np.array(model.lower, dtype=np.float64)
-        self.upper = np.array(model.upper, dtype=np.float64)
-        self.ends = np.ascontiguousarray(np.stack([model.starts, model.goals], axis=1), dtype=np.float64)  # (N, 2, 3)
-
-    def search(self, costs: np.ndarray, max_evaluations: int, spent: int, fractions: tuple[float, ...] = (),
-               step: float = 0.0, min_step: float = 0.0) -> tuple[np.ndarray, int]:
-        """The slide by ``fractions`` (if any), else the polish from ``step`` down to
-        ``min_step``, from the plan with costs ``costs`` ``(N,)`` and ``spent`` evaluations.
-        Returns the ``(N, K, 3)`` plan reached and the evaluations spent in all."""
-        N, K = self.plan.shape[0], self.plan.shape[1]
-        slide = len(fractions) > 0
-        run = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=np.empty(((2 if slide else 6) * K, N, K, 3)))
-        run.mode = kn.MODE_EVALUATE
-        run.ensure_scratch(1)
-        best = self.plan.copy()
-        try:
-            spent = kn.team_search(slide, np.array(fractions, dtype=np.float64), float(step), float(min_step),
-                                   int(max_evaluations), int(spent), np.array(costs, dtype=np.float64), self.lower,
-                                   self.upper, self.ends, best,
-                                   *kernel_args(kn.team_search, run, self.ma, self.sa, run.scratch[0],
-                                                per_call=TEAM_SEARCH_PER_CALL))
-        finally:
-            run.release()
-        return best, int(spent)
+def team_search(model: CostModel, plan: np.ndarray, costs: np.ndarray, max_evaluations: int, spent: int,
+                fractions: tuple[float, ...] = (), step: float = 0.0, min_step: float = 0.0) -> tuple[np.ndarray, int]:
+    """:func:`staghunt.solvers.game.team_slide` (by ``fractions``, if any) or
+    :func:`~staghunt.solvers.game.team_polish` (from ``step`` down to ``min_step``) of the team
+    plan ``plan`` ``(N, K, 3)`` with costs ``costs`` ``(N,)`` and ``spent`` evaluations, in one
+    compiled call (:func:`staghunt.engine.kernels.team_search`) on this thread's kept evaluation
+    pass: the same candidates, costs and decisions as the Python loops (kept as their reference),
+    where each of the loop's sweeps paid about three times the kernels' time in array building, a
+    Python call and the choice between candidates. Returns the ``(N, K, 3)`` plan reached and the
+    evaluations spent in all."""
+    best = np.array(plan, dtype=np.float64, order="C", copy=True)
+    N, K = best.shape[0], best.shape[1]
+    run = _evaluation_pass(_model_arrays_cached(model), N, K, (2 if fractions else 6) * K)
+    ends = np.ascontiguousarray(np.stack([model.starts, model.goals], axis=1), dtype=np.float64)  # (N, 2, 3)
+    spent = kn.team_search(len(fractions) > 0, np.array(fractions, dtype=np.float64), float(step), float(min_step),
+                           int(max_evaluations), int(spent), np.array(costs, dtype=np.float64),
+                           np.array(model.lower, dtype=np.float64), np.array(model.upper, dtype=np.float64), ends,
+                           best, *kernel_args(kn.team_search, run, run.ma, run.sa, run.scratch[0],
+                                              per_call=TEAM_SEARCH_PER_CALL))
+    return best, int(spent)

@@ -47,7 +47,7 @@ from staghunt.solvers.problem import SwarmProblem
 from staghunt.solvers.swarm import Progress, SwarmOutcome
 
 if TYPE_CHECKING:
-    from staghunt.engine.deviations import Deviations, TeamSearch
+    from staghunt.engine.deviations import Deviations
 
 logger = logging.getLogger("staghunt.engine")
 
@@ -556,14 +556,15 @@ class NumbaEngine:
         self.prepare()
         return evaluate(model, waypoints)
 
-    def team_search(self, model: CostModel, plan: np.ndarray) -> TeamSearch | None:
-        """The team slide and polish of ``plan`` in one compiled call each (see
-        :class:`staghunt.engine.deviations.TeamSearch`); ``None`` while the kernel is still being
+    def team_search(self, model: CostModel, plan: np.ndarray, costs: np.ndarray, max_evaluations: int, spent: int,
+                    **search: Any) -> tuple[np.ndarray, int] | None:
+        """The team slide or polish of ``plan`` in one compiled call (see
+        :func:`staghunt.engine.deviations.team_search`); ``None`` while the kernel is still being
         compiled beside the first run (:func:`team_search_ready`): the caller's Python loop then
         makes the same decisions."""
-        from staghunt.engine.deviations import TeamSearch
+        from staghunt.engine.deviations import team_search
 
-        return TeamSearch(model, plan) if team_search_ready() else None
+        return team_search(model, plan, costs, max_evaluations, spent, **search) if team_search_ready() else None
 
     def deviations(self, model: CostModel, plan: np.ndarray, n: int) -> Deviations:
         """UAV ``n``'s deviation costs from the feasible ``plan`` (see

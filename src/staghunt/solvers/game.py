@@ -165,16 +165,15 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
     itself if nothing improved) and the path evaluations spent (``N`` per candidate,
     ``<= max_evaluations``). On the compiled engine (``compiled``) the whole search is one
     compiled call making the same decisions on the same costs
-    (:class:`~staghunt.engine.deviations.TeamSearch`); this loop is its reference."""
+    (:func:`~staghunt.engine.deviations.team_search`); this loop is its reference."""
     N, K = plan.shape[0], plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, 1, K, 3)
     J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 6 * K)
     if J is None:
         return plan, spent
-    fast = _team_search(model, plan, evaluator) if compiled else None
-    if fast is not None:
-        found, spent = fast.search(J, max_evaluations, spent, step=step, min_step=min_step)
-        return (plan if np.array_equal(found, plan) else found), spent
+    found = _compiled(model, plan, evaluator, J, max_evaluations, spent, step=step, min_step=min_step) if compiled else None
+    if found is not None:
+        return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
     best = plan
     while step >= min_step and spent + N * 6 * K <= max_evaluations:
         cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
@@ -189,11 +188,13 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
     return best, spent
 
 
-def _team_search(model: CostModel, plan: np.ndarray, evaluator: Evaluator) -> Any:
-    """The compiled team search of ``plan`` if ``evaluator`` is a compiled engine's and its kernel
-    is ready (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`), else ``None``."""
+def _compiled(model: CostModel, plan: np.ndarray, evaluator: Evaluator, *search: Any,
+              **options: Any) -> tuple[np.ndarray, int] | None:
+    """The plan and evaluations of the compiled team search of ``plan`` if ``evaluator`` is a
+    compiled engine's and its kernel is ready
+    (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`), else ``None``."""
     engine = getattr(evaluator, "__self__", None)
-    return engine.team_search(model, plan) if hasattr(engine, "team_search") else None
+    return engine.team_search(model, plan, *search, **options) if hasattr(engine, "team_search") else None
 
 
 def _in_order(total: np.ndarray, op: np.ufunc) -> np.ndarray:
@@ -221,15 +222,14 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
     can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
     path evaluations spent (``N`` per candidate, ``<= max_evaluations``). On the compiled engine
     (``compiled``) the whole search is one compiled call making the same decisions
-    (:class:`~staghunt.engine.deviations.TeamSearch`); this loop is its reference."""
+    (:func:`~staghunt.engine.deviations.team_search`); this loop is its reference."""
     N, K = plan.shape[0], plan.shape[1]
     J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 2 * K)
     if J is None:
         return plan, spent
-    fast = _team_search(model, plan, evaluator) if compiled else None
-    if fast is not None:
-        found, spent = fast.search(J, max_evaluations, spent, fractions=tuple(fractions))
-        return (plan if np.array_equal(found, plan) else found), spent
+    found = _compiled(model, plan, evaluator, J, max_evaluations, spent, fractions=tuple(fractions)) if compiled else None
+    if found is not None:
+        return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
     best = plan
     starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
     rows = np.arange(K)
