@@ -194,6 +194,45 @@ def test_evaluate_agrees_zero_weights_and_beta():
     assert_costs_agree(make_model(n, continuous=False), population(model, 64, 10, seed=6))
 
 
+@pytest.mark.parametrize("continuous", [True, False])
+def test_float32_pair_filter_misses_no_near_pair(continuous):
+    """Past N = 4, pairs are first checked in float32 lane by lane (kernels._near32), only the
+    lanes that may be near being computed in float64. On a site 40 km from its origin (float32
+    coordinates there are 4 mm apart) with team-mates flying parallel at the separation limit
+    plus or minus 1e-7 m, 1e-3 m and 0, or crossing between waypoints, every collision and
+    deficit is the reference's."""
+    import dataclasses
+
+    shift = np.array([40000.0, -25000.0, 0.0])
+    base = make_model(8, continuous=continuous)
+    model = dataclasses.replace(
+        base, lower=frozen(base.lower + shift), upper=frozen(base.upper + shift),
+        starts=frozen(base.starts + shift), goals=frozen(base.goals + shift),
+        start_abs=frozen(base.start_abs + shift), goal_abs=frozen(base.goal_abs + shift),
+        reference=frozen(base.reference + shift), cylinders=frozen(base.cylinders + [shift[0], shift[1], 0.0]))
+    rng = np.random.default_rng(8)
+    P, N, K = 96, 8, 6
+    t = (np.arange(1, K + 1) / (K + 1))[None, None, :, None]
+    wp = model.starts[None, :, None, :] + t * (model.goals - model.starts)[None, :, None, :]
+    wp = wp + rng.normal(0.0, [4.0, 4.0, 3.0], size=(P, N, K, 3))
+    limit = model.safe_distance + 2.0 * model.radius[0]
+    for q in range(16, P):
+        a = int(rng.integers(0, N - 1))
+        c = a + 1
+        u = rng.normal(size=3)
+        u /= np.linalg.norm(u)
+        if q % 6 == 5:  # crossing between waypoints: sides swap from one waypoint to the next
+            wp[q, c, ::2] = wp[q, a, ::2] + 3.0 * u
+            wp[q, c, 1::2] = wp[q, a, 1::2] - 3.0 * u
+        else:
+            wp[q, c] = wp[q, a] + (limit + (-1e-7, 0.0, 1e-7, -1e-3, 1e-3)[q % 6]) * u
+    got = fast_evaluate(model, wp)
+    ref = evaluate(model, wp)
+    assert np.array_equal(got.violation == 0, ref.violation == 0)
+    assert (ref.violation[:, :, 2] > 0).sum() > 40 and (ref.violation[16:, :, 2] == 0).any()
+    assert_costs_agree(model, wp)
+
+
 def test_kept_evaluation_passes_return_their_own_arrays_on_every_thread():
     """Small batches reuse a pass kept per thread: a result is never overwritten by the next
     evaluation of the same shape, a batch too large to keep gives the same values, and threads
@@ -539,7 +578,7 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
            ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
            w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio)
     team = (w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, ma.par, w.form, w.hit,
-            w.tmp, w.acc, w.acc2, w.flag, w.better, w.terms, w.vio, w.res, run.X, run.PB,
+            w.tmp, w.acc, w.acc2, w.flag, w.fpos, w.lanes, w.better, w.terms, w.vio, w.res, run.X, run.PB,
             run.pcost, run.pviol, run.cost, run.viol, run.J, sa.players, run.terms_out, run.vio_out, run.res_out)
     extra = _RunState(np.uint64(1), np.zeros(3), np.zeros((1, 1)), np.zeros((2, 1)), np.zeros((2, N)), np.zeros(2))
     loop = (extra.key, extra.state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets,
@@ -547,7 +586,7 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
             ma.ref_diff, sa.players, run.pcost, run.pviol, run.cost, run.viol, run.J, extra.gcost, extra.history,
             extra.rhistory, extra.hviol, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1,
             w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit,
-            w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
+            w.better, w.res, w.fpos, w.lanes, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
     for kernel, sources, per_call, expected in (
             (kn.uav_pass, (run, ma, sa, w), UAV_PASS_PER_CALL, uav),
             (kn.team_pass, (run, ma, sa, w), TEAM_PASS_PER_CALL, team),
