@@ -195,12 +195,11 @@ def test_evaluate_agrees_zero_weights_and_beta():
 
 
 @pytest.mark.parametrize("continuous", [True, False])
-def test_float32_pair_filter_misses_no_near_pair(continuous):
-    """Past N = 4, pairs are first checked in float32 lane by lane (kernels._near32), only the
-    lanes that may be near being computed in float64. On a site 40 km from its origin (float32
-    coordinates there are 4 mm apart) with team-mates flying parallel at the separation limit
-    plus or minus 1e-7 m, 1e-3 m and 0, or crossing between waypoints, every collision and
-    deficit is the reference's."""
+def test_pruned_pair_check_misses_no_near_pair(continuous):
+    """Past N = 4 the pair check is pruned by segment boxes over the block's lanes (exact). On a
+    site 40 km from its origin, with team-mates flying parallel at the separation limit plus or
+    minus 1e-7 m, 1e-3 m and 0, or crossing between waypoints, every collision and deficit is
+    the reference's."""
     import dataclasses
 
     shift = np.array([40000.0, -25000.0, 0.0])
@@ -578,7 +577,7 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
            ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
            w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio)
     team = (w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, ma.par, w.form, w.hit,
-            w.tmp, w.acc, w.acc2, w.flag, w.fpos, w.lanes, w.better, w.terms, w.vio, w.res, run.X, run.PB,
+            w.tmp, w.acc, w.acc2, w.flag, w.better, w.terms, w.vio, w.res, run.X, run.PB,
             run.pcost, run.pviol, run.cost, run.viol, run.J, sa.players, run.terms_out, run.vio_out, run.res_out)
     extra = _RunState(np.uint64(1), np.zeros(3), np.zeros((1, 1)), np.zeros((2, 1)), np.zeros((2, N)), np.zeros(2))
     loop = (extra.key, extra.state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets,
@@ -586,7 +585,7 @@ def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
             ma.ref_diff, sa.players, run.pcost, run.pviol, run.cost, run.viol, run.J, extra.gcost, extra.history,
             extra.rhistory, extra.hviol, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1,
             w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit,
-            w.better, w.res, w.fpos, w.lanes, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
+            w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
     for kernel, sources, per_call, expected in (
             (kn.uav_pass, (run, ma, sa, w), UAV_PASS_PER_CALL, uav),
             (kn.team_pass, (run, ma, sa, w), TEAM_PASS_PER_CALL, team),

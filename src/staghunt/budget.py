@@ -120,8 +120,8 @@ def _scratch(N: int, K: int, S: int) -> int:
     B = _block(N, K)
     S1 = K + 1
     cells = (max(S, 1) * 3 * K + 3 * N * (K + 2) + N * K + 5 * S1 + 6 * S1 + 2 * S1
-             + 3 * N * S1 + 2 * S1 + 3 * (K + 2) + 11 * N + max(S1, 3 * N, 8) + 12 + 2)
-    return cells * B * F8 + 12 * N * (K + 2) * B  # and the float32 positions
+             + 3 * N * S1 + 2 * S1 + 3 * (K + 2) + 11 * N + max(S1, 3 * N, 8) + 12)
+    return cells * B * F8
 
 
 def _swarm_parts(engine: str, P: int, I: int, K: int, S: int, C: int, N: int, T: int,

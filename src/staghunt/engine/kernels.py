@@ -87,15 +87,8 @@ violations (2) to ``par`` at ``N_PAR + SOLO_STRIDE * n``. Then only the swarm-fo
 ``J_s`` terms are computed, only pairs with a player are checked, the violation is the players'
 own, and ``J`` of the other UAVs is NaN (as :meth:`SwarmProblem.evaluate`)."""
 
-PRUNE_MIN_UAVS = 4
-"""For N above this, separation pairs are pruned by segment bounding boxes, then filtered in
-float32 lane by lane (:func:`_team_terms`); with fixed paths (``solo``) they are pruned at any
-N. At N = 3 the float32 filter measured slower: a deviation's polish evaluates few lanes."""
+PRUNE_MIN_UAVS = 4  # separation pairs are pruned by segment bounding boxes for N above this
 PRUNE_GUARD = 1e-6  # m added to a pair's limit before a box gap counts as clear
-FILTER_SLACK = 256.0 * 2.0 ** -24
-"""Times the largest |coordinate - origin| (m): a bound, with a wide margin, on how much nearer
-than it is a pair's float32 distance on a segment can come out (:func:`_near32`)."""
-FILTER_ROUNDING = 1.0 + 1e-6  # the squared float32 threshold's margin for its own rounding
 
 # Columns of ``uav (N, U_COLUMNS)`` (:func:`staghunt.engine.arrays.model_arrays`). Module-level
 # integers: Numba freezes them as compile-time constants, so naming them costs nothing.
@@ -130,9 +123,9 @@ MODE_DEVIATE = 3  # evaluate ``wp`` as deviations of the ``players`` from fixed 
 
 def block_size(n_uavs: int, waypoints: int) -> int:
     """Lanes per block: a multiple of 8 in ``[64, 256]`` keeping a block's paths in cache where
-    that leaves 64 lanes or more. Large teams get 64 even so: with fewer lanes, the per-pair
-    loops over a block's lanes measured slower than the cache misses of a larger block
-    (N = 24, K = 20 and 40: 24 and 16 lanes, 6-12 % slower than 64; benchmarks/README.md)."""
+    that leaves 64 lanes or more. Large teams get 64 even so: with fewer lanes the loops over a
+    block's lanes (the pair check's above all) measured slower than a larger block's cache
+    misses (N = 24, K = 20: 24 lanes before; benchmarks/README.md)."""
     b = (16384 // max(1, n_uavs * (waypoints + 2))) // 8 * 8
     return max(64, min(256, b))
 
@@ -556,51 +549,21 @@ def _pair_segment(x0: float, y0: float, z0: float, x1: float, y1: float, z1: flo
     return (x1 * x1 + y1 * y1) + z1 * z1, (clx * clx + cly * cly) + clz * clz
 
 
-@njit(inline="always", error_model="numpy")
-def _near32(x0, y0, z0, x1, y1, z1, far2, continuous):  # noqa: ANN001, ANN202
-    """0 if the float32 pair segment with relative positions ``(x0, y0, z0)``,
-    ``(x1, y1, z1)`` at its ends is certainly farther apart than the threshold, ``far2`` its
-    square with margins: along the segment (closest approach, as :func:`_pair_segment`) with
-    ``continuous``, else at its end (NaN: 1).
-
-    Why the margins suffice: the float32 positions are off by at most ``2**-24`` times the
-    largest ``|coordinate - origin|`` (X) each, the relative positions by 4 of those per
-    coordinate; the distance is 1-Lipschitz in the ends' positions, and the closest point
-    computed in float32 (any ``t`` in [0, 1] from the rounded formula, clamped) is off from the
-    exact point at that ``t`` by a few roundings of the ends' and motion's sizes (<= 4X each),
-    while ``t``'s own error only adds ``dd * dt**2``, second order. The whole is below 64 ulp
-    of X, against ``FILTER_SLACK`` = 256 ulp of X added to the threshold, and the squaring and
-    sum round by 3 ulp relative, against ``FILTER_ROUNDING``."""
-    if continuous:
-        drx = x1 - x0
-        dry = y1 - y0
-        drz = z1 - z0
-        dd = drx * drx + dry * dry + drz * drz
-        t = -(x0 * drx + y0 * dry + z0 * drz) / dd
-        t = min(max(t, np.float32(0.0)), np.float32(1.0)) if dd > np.float32(0.0) else np.float32(0.0)
-        x1 = x0 + t * drx
-        y1 = y0 + t * dry
-        z1 = z0 + t * drz
-    return 0 if x1 * x1 + y1 * y1 + z1 * z1 > far2 else 1
-
-
 @subroutine
 def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, every, players,  # noqa: ANN001
-                form, hit, tmp, acc, acc2, flag, fpos, lanes, terms, vio, res) -> None:
+                form, hit, tmp, acc, acc2, flag, terms, vio, res) -> None:
     """Formation cost and separation for the whole team (:mod:`staghunt.costs.formation`), then
     ``J_s``, ``J_f``, ``J_n`` (:func:`staghunt.costs.evaluate`).
 
     Writes ``vio[:, 2]`` (separation deficit) and ``res (3, N, B)`` = ``J_f``, ``J_s``, ``J_n``.
     Scratch: ``form (3, N, S, B)`` = ``E`` (eq. 5), nearest squared distance at the waypoints,
     along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments;
-    ``tmp (>= S, B)``; ``acc``, ``acc2``, ``flag`` ``(B,)``; ``fpos (3, N, K+2, B)`` float32,
-    ``lanes (2, B)`` int64. For ``N > PRUNE_MIN_UAVS`` a pair's segments whose bounding boxes
-    over the block's lanes lie farther apart than its separation limit are skipped, and the
-    others are first checked in float32, lane by lane, only the lanes that may be near being
-    computed in float64 (exact; see the comments in the body). With ``solo`` (a problem with
-    fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of ``players``
-    (``every``: the collisions of all UAVs, from those pairs), and pairs are pruned (not
-    filtered) at any N.
+    ``tmp (>= S, B)``; ``acc``, ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a
+    pair's segments whose bounding boxes over the block's lanes lie farther apart than its
+    separation limit are skipped (exact; see the comment in the body). With ``solo`` (a
+    problem with fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of
+    ``players`` (``every``: the collisions of all UAVs, from those pairs), and pairs are
+    pruned at any N.
     """
     N = px.shape[0]
     K = px.shape[1] - 2
@@ -661,7 +624,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
         point = np.empty((6, K + 2))  # one UAV's box of each waypoint over the lanes
         for n in range(N):
             # With ``solo`` a UAV other than the players has one fixed path in every lane.
-            width = nb if not solo or _is_player(players, n) else min(nb, 1)
+            lanes = nb if not solo or _is_player(players, n) else min(nb, 1)
             for i in range(K + 2):
                 x0 = np.inf
                 x1 = -np.inf
@@ -669,7 +632,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 y1 = -np.inf
                 z0 = np.inf
                 z1 = -np.inf
-                for b in range(width):
+                for b in range(lanes):
                     x0 = min(x0, px[n, i, b])
                     x1 = max(x1, px[n, i, b])
                     y0 = min(y0, py[n, i, b])
@@ -686,43 +649,6 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 for q in range(0, 6, 2):
                     box[q, n, j] = min(point[q, j], point[q, j + 1])
                     box[q + 1, n, j] = max(point[q + 1, j], point[q + 1, j + 1])
-    # The float32 filter past small N: the positions relative to UAV 0's start in float32 (a
-    # fixed UAV's in lane 0 only), and the bound ``slack`` (m) on how much nearer a pair's
-    # float32 distance on a segment can be computed than it is (see _near32).
-    filtered = N > PRUNE_MIN_UAVS
-    slack = 0.0
-    if filtered:
-        ox = uav[0, U_START]
-        oy = uav[0, U_START + 1]
-        oz = uav[0, U_START_Z]
-        ext = 0.0  # a bound on |coordinate - origin|, first from the starts and goals
-        for n in range(N):
-            ext = max(ext, max(abs(uav[n, U_START] - ox), abs(uav[n, U_GOAL] - ox)))
-            ext = max(ext, max(abs(uav[n, U_START + 1] - oy), abs(uav[n, U_GOAL + 1] - oy)))
-            ext = max(ext, max(abs(uav[n, U_START_Z] - oz), abs(uav[n, U_GOAL_Z] - oz)))
-        ext = 2.0 * ext + 1000.0
-        over = 0
-        for n in range(N):
-            m = nb if not solo or _is_player(players, n) else min(nb, 1)
-            for i in range(K + 2):
-                for b in range(m):
-                    u = px[n, i, b] - ox
-                    v = py[n, i, b] - oy
-                    w = pz[n, i, b] - oz
-                    fpos[0, n, i, b] = np.float32(u)
-                    fpos[1, n, i, b] = np.float32(v)
-                    fpos[2, n, i, b] = np.float32(w)
-                    over += 0 if max(abs(u), max(abs(v), abs(w))) <= ext else 1
-        if over > 0:  # rare: the bound from the coordinates themselves
-            ext = 0.0
-            for n in range(N):
-                m = nb if not solo or _is_player(players, n) else min(nb, 1)
-                for i in range(K + 2):
-                    for b in range(m):
-                        ext = max(ext, max(abs(px[n, i, b] - ox), max(abs(py[n, i, b] - oy), abs(pz[n, i, b] - oz))))
-        slack = FILTER_SLACK * ext + 1e-6
-    flags = lanes[0]
-    index = lanes[1]
     dw = tmp[0]  # a pair's squared distances on one segment: at its end waypoint, along it
     ds = tmp[1]
     for a in range(N):
@@ -731,8 +657,8 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 continue
             keep_a = _kept(solo, every, players, a)  # the UAVs whose rows are read
             keep_c = _kept(solo, every, players, c)
-            reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
             if prune:
+                reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
                 n_near = 0
                 for j in range(S):
                     g = max(max(box[0, c, j] - box[1, a, j], box[0, a, j] - box[1, c, j]),
@@ -743,110 +669,46 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                     n_near += k
                 if n_near == 0:
                     continue
+            # Segment j of the pair, lane by lane: the relative positions p_a - p_c (NumPy's
+            # ``rel``) at its ends, the squared distance at its end (free waypoint j + 1, for
+            # j < K) and, with ``continuous``, along it; one pass, no stored relative positions.
             # With ``solo`` a fixed UAV has the same path in every lane: its coordinates are read
             # once per segment instead of in every lane (the same numbers).
             fixed_a = solo and not _is_player(players, a)
             fixed_c = solo and not _is_player(players, c)
-            if not filtered:
-                # Segment j of the pair, lane by lane: the relative positions p_a - p_c (NumPy's
-                # ``rel``) at its ends, the squared distance at its end (free waypoint j + 1,
-                # for j < K) and, with ``continuous``, along it; one pass, no stored positions.
-                for j in range(S):
-                    if near[j] == 0 or not (continuous or j < K):
-                        continue
-                    if fixed_c:
-                        cx0, cy0, cz0 = px[c, j, 0], py[c, j, 0], pz[c, j, 0]
-                        cx1, cy1, cz1 = px[c, j + 1, 0], py[c, j + 1, 0], pz[c, j + 1, 0]
-                        for b in range(nb):
-                            dw[b], ds[b] = _pair_segment(px[a, j, b] - cx0, py[a, j, b] - cy0, pz[a, j, b] - cz0,
-                                                         px[a, j + 1, b] - cx1, py[a, j + 1, b] - cy1,
-                                                         pz[a, j + 1, b] - cz1)
-                    elif fixed_a:
-                        ax0, ay0, az0 = px[a, j, 0], py[a, j, 0], pz[a, j, 0]
-                        ax1, ay1, az1 = px[a, j + 1, 0], py[a, j + 1, 0], pz[a, j + 1, 0]
-                        for b in range(nb):
-                            dw[b], ds[b] = _pair_segment(ax0 - px[c, j, b], ay0 - py[c, j, b], az0 - pz[c, j, b],
-                                                         ax1 - px[c, j + 1, b], ay1 - py[c, j + 1, b],
-                                                         az1 - pz[c, j + 1, b])
-                    else:
-                        for b in range(nb):
-                            dw[b], ds[b] = _pair_segment(px[a, j, b] - px[c, j, b], py[a, j, b] - py[c, j, b],
-                                                         pz[a, j, b] - pz[c, j, b], px[a, j + 1, b] - px[c, j + 1, b],
-                                                         py[a, j + 1, b] - py[c, j + 1, b],
-                                                         pz[a, j + 1, b] - pz[c, j + 1, b])
-                    for side in range(2):  # the pair's two UAVs, those whose rows are read
-                        n = a if side == 0 else c
-                        if not (keep_a if side == 0 else keep_c):
-                            continue
-                        if j < K:
-                            for b in range(nb):
-                                near2[n, j, b] = min(near2[n, j, b], dw[b])
-                        if continuous:
-                            for b in range(nb):
-                                seg2[n, j, b] = min(seg2[n, j, b], ds[b])
-                continue
-            # Float32 filter: a lane whose float32 distance on segment j (along it with
-            # ``continuous``, else at its end) exceeds ``reach + slack`` is farther apart than
-            # the limit there, so, as with the boxes, it is skipped. The flagged lanes' indices
-            # are gathered without a branch per lane, and those lanes computed as above, in
-            # float64. Exact: the same collisions, deficits and J_f.
-            far = np.float32(reach + slack)
-            far2 = far * far * np.float32(FILTER_ROUNDING)
-            la = 0 if fixed_a else 1  # a fixed UAV's path is in lane 0
-            lc = 0 if fixed_c else 1
             for j in range(S):
                 if near[j] == 0 or not (continuous or j < K):
                     continue
-                count = 0
                 if fixed_c:
-                    cx0, cy0, cz0 = fpos[0, c, j, 0], fpos[1, c, j, 0], fpos[2, c, j, 0]
-                    cx1, cy1, cz1 = fpos[0, c, j + 1, 0], fpos[1, c, j + 1, 0], fpos[2, c, j + 1, 0]
+                    cx0, cy0, cz0 = px[c, j, 0], py[c, j, 0], pz[c, j, 0]
+                    cx1, cy1, cz1 = px[c, j + 1, 0], py[c, j + 1, 0], pz[c, j + 1, 0]
                     for b in range(nb):
-                        k = _near32(fpos[0, a, j, b] - cx0, fpos[1, a, j, b] - cy0, fpos[2, a, j, b] - cz0,
-                                    fpos[0, a, j + 1, b] - cx1, fpos[1, a, j + 1, b] - cy1,
-                                    fpos[2, a, j + 1, b] - cz1, far2, continuous)
-                        flags[b] = k
-                        count += k
+                        dw[b], ds[b] = _pair_segment(px[a, j, b] - cx0, py[a, j, b] - cy0, pz[a, j, b] - cz0,
+                                                     px[a, j + 1, b] - cx1, py[a, j + 1, b] - cy1,
+                                                     pz[a, j + 1, b] - cz1)
                 elif fixed_a:
-                    ax0, ay0, az0 = fpos[0, a, j, 0], fpos[1, a, j, 0], fpos[2, a, j, 0]
-                    ax1, ay1, az1 = fpos[0, a, j + 1, 0], fpos[1, a, j + 1, 0], fpos[2, a, j + 1, 0]
+                    ax0, ay0, az0 = px[a, j, 0], py[a, j, 0], pz[a, j, 0]
+                    ax1, ay1, az1 = px[a, j + 1, 0], py[a, j + 1, 0], pz[a, j + 1, 0]
                     for b in range(nb):
-                        k = _near32(ax0 - fpos[0, c, j, b], ay0 - fpos[1, c, j, b], az0 - fpos[2, c, j, b],
-                                    ax1 - fpos[0, c, j + 1, b], ay1 - fpos[1, c, j + 1, b],
-                                    az1 - fpos[2, c, j + 1, b], far2, continuous)
-                        flags[b] = k
-                        count += k
+                        dw[b], ds[b] = _pair_segment(ax0 - px[c, j, b], ay0 - py[c, j, b], az0 - pz[c, j, b],
+                                                     ax1 - px[c, j + 1, b], ay1 - py[c, j + 1, b],
+                                                     az1 - pz[c, j + 1, b])
                 else:
                     for b in range(nb):
-                        k = _near32(fpos[0, a, j, b] - fpos[0, c, j, b], fpos[1, a, j, b] - fpos[1, c, j, b],
-                                    fpos[2, a, j, b] - fpos[2, c, j, b], fpos[0, a, j + 1, b] - fpos[0, c, j + 1, b],
-                                    fpos[1, a, j + 1, b] - fpos[1, c, j + 1, b],
-                                    fpos[2, a, j + 1, b] - fpos[2, c, j + 1, b], far2, continuous)
-                        flags[b] = k
-                        count += k
-                if count == 0:
-                    continue
-                m = 0
-                for b in range(nb):
-                    index[m] = b
-                    m += flags[b]
-                for i in range(m):
-                    b = index[i]
-                    ba = b * la
-                    bc = b * lc
-                    dwb, dsb = _pair_segment(px[a, j, ba] - px[c, j, bc], py[a, j, ba] - py[c, j, bc],
-                                             pz[a, j, ba] - pz[c, j, bc], px[a, j + 1, ba] - px[c, j + 1, bc],
-                                             py[a, j + 1, ba] - py[c, j + 1, bc], pz[a, j + 1, ba] - pz[c, j + 1, bc])
-                    if keep_a:
-                        if j < K:
-                            near2[a, j, b] = min(near2[a, j, b], dwb)
-                        if continuous:
-                            seg2[a, j, b] = min(seg2[a, j, b], dsb)
-                    if keep_c:
-                        if j < K:
-                            near2[c, j, b] = min(near2[c, j, b], dwb)
-                        if continuous:
-                            seg2[c, j, b] = min(seg2[c, j, b], dsb)
+                        dw[b], ds[b] = _pair_segment(px[a, j, b] - px[c, j, b], py[a, j, b] - py[c, j, b],
+                                                     pz[a, j, b] - pz[c, j, b], px[a, j + 1, b] - px[c, j + 1, b],
+                                                     py[a, j + 1, b] - py[c, j + 1, b],
+                                                     pz[a, j + 1, b] - pz[c, j + 1, b])
+                for side in range(2):  # the pair's two UAVs, those whose rows are read
+                    n = a if side == 0 else c
+                    if not (keep_a if side == 0 else keep_c):
+                        continue
+                    if j < K:
+                        for b in range(nb):
+                            near2[n, j, b] = min(near2[n, j, b], dw[b])
+                    if continuous:
+                        for b in range(nb):
+                            seg2[n, j, b] = min(seg2[n, j, b], ds[b])
 
     # Collisions (eq. 6: distance <= d_s + 2 r), deficit, J_f (eq. 7), then J_s and J_n.
     for n in range(N):
@@ -1123,7 +985,7 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
 
 @njit(cache=True, nogil=True, error_model="numpy")
 def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par,  # noqa: ANN001
-               form, hit, tmp, acc, acc2, flag, fpos, lanes, better, terms, vio, res,
+               form, hit, tmp, acc, acc2, flag, better, terms, vio, res,
                X, PB, pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out) -> None:
     """Entry 2: formation cost, separation, ``J_n`` for a block; then the compared costs and
     personal bests of particles ``q0 .. q0+nb`` (``MODE_INIT``, ``MODE_STEP``) or the twin's
@@ -1134,7 +996,7 @@ def team_pass(mode, q0, nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff
     when the full evaluation's is), but only the players' ``J`` are meaningful."""
     solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
     _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, solo, mode == MODE_DEVIATE,
-                players, form, hit, tmp, acc, acc2, flag, fpos, lanes, terms, vio, res)
+                players, form, hit, tmp, acc, acc2, flag, terms, vio, res)
     if mode >= MODE_EVALUATE:
         _store(q0, nb, terms, vio, res, terms_out, vio_out, res_out)
     else:
@@ -1213,13 +1075,13 @@ def _block(mode, q0, nb, it, key, inertia, t, shared, scratch, probe) -> None:  
      heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out, uav_entries,
      team_entries) = shared
     (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-     terms, vio, form, hit, better, res, fpos, lanes) = scratch
+     terms, vio, form, hit, better, res) = scratch
     _uav_pass(uav_entries, probe, mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member,
               offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww[t], px[t], py[t], pz[t], ph[t], stx[t],
               sty[t], sth[t], prev[t], bits1[t], bits2[t], seg[t], sub[t], ang[t], tmp[t], acc[t], acc2[t],
               flag[t], terms[t], vio[t])
     _team_pass(team_entries, probe, mode, q0, nb, px[t], py[t], pz[t], uav, weights, heads, tails, mu, ref_diff,
-               par, form[t], hit[t], tmp[t], acc[t], acc2[t], flag[t], fpos[t], lanes[t], better[t],
+               par, form[t], hit[t], tmp[t], acc[t], acc2[t], flag[t], better[t],
                terms[t], vio[t], res[t], X, PB, pcost, pviol, cost, viol, J, players, terms_out,
                vio_out, res_out)
 
@@ -1229,7 +1091,7 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
             par, uav, cyl, prm, pedge, grid, weights, heads, tails, mu, ref_diff, players,
             pcost, pviol, cost, viol, J, gcost, history, rhistory, hviol,
             sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-            terms, vio, form, hit, better, res, fpos, lanes, wp, terms_out, vio_out, res_out, uav_entries,
+            terms, vio, form, hit, better, res, wp, terms_out, vio_out, res_out, uav_entries,
             team_entries) -> None:
     """Iterations ``it0 .. it1-1`` of a swarm run in one call (iteration 0: the initial draw),
     each over all particles in blocks of ``bs``, then the global best, the histories
@@ -1246,7 +1108,7 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
               heads, tails, mu, ref_diff, players, pcost, pviol, cost, viol, J, terms_out, vio_out, res_out,
               uav_entries, team_entries)
     scratch = (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
-               terms, vio, form, hit, better, res, fpos, lanes)
+               terms, vio, form, hit, better, res)
     _block(MODE_STEP, 0, 0, it0, key, 0.0, 0, shared, scratch, True)  # raises here, not in the loop
     for it in range(it0, it1):
         mode = MODE_INIT if it == 0 else MODE_STEP
@@ -1280,7 +1142,7 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
            sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights, heads, tails, mu,
            ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out, vio_out,
            res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2,
-           flag, terms, vio, form, hit, better, res, fpos, lanes, uav_entries, team_entries):
+           flag, terms, vio, form, hit, better, res, uav_entries, team_entries):
     """The twin of :func:`staghunt.solvers.local.polish` on UAV ``n``'s deviations in one call:
     a pattern search from ``path (K, 3)`` (cost ``J0``) that moves one coordinate by
     ``+-step`` per candidate (``6 K`` of them, rows ``0 .. 6K-1`` of ``wp``, whose other UAVs'
@@ -1322,7 +1184,7 @@ def polish(n, step, min_step, max_evaluations, J0, lower, upper, path,  # noqa: 
                       sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx,
                       sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
             _team_pass(team_entries, False, MODE_DEVIATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu,
-                       ref_diff, par, form, hit, tmp, acc, acc2, flag, fpos, lanes, better, terms, vio, res, X, PB,
+                       ref_diff, par, form, hit, tmp, acc, acc2, flag, better, terms, vio, res, X, PB,
                        pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out)
         spent += r1 - r0
         if combine:  # the combination or the best single move, whichever is cheaper
@@ -1355,7 +1217,7 @@ def team_search(slide, fractions, step, min_step, max_evaluations, spent, costs,
                 best, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights, heads, tails,
                 mu, ref_diff, players, X, V, PB, gbest, initial, pcost, pviol, cost, viol, J, terms_out,
                 vio_out, res_out, sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp,
-                acc, acc2, flag, terms, vio, form, hit, better, res, fpos, lanes, uav_entries, team_entries):
+                acc, acc2, flag, terms, vio, form, hit, better, res, uav_entries, team_entries):
     """The twin of :func:`staghunt.solvers.game.team_slide` (``slide``) or
     :func:`~staghunt.solvers.game.team_polish` on the team plan ``best (N, K, 3)`` (costs
     ``costs (N,)``, ``spent`` evaluations already spent) in one call: each sweep writes its
@@ -1412,7 +1274,7 @@ def team_search(slide, fractions, step, min_step, max_evaluations, spent, costs,
                       sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, sww, px, py, pz, ph, stx,
                       sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag, terms, vio)
             _team_pass(team_entries, False, MODE_EVALUATE, q0, nb, px, py, pz, uav, weights, heads, tails, mu,
-                       ref_diff, par, form, hit, tmp, acc, acc2, flag, fpos, lanes, better, terms, vio, res, X, PB,
+                       ref_diff, par, form, hit, tmp, acc, acc2, flag, better, terms, vio, res, X, PB,
                        pcost, pviol, cost, viol, J, players, terms_out, vio_out, res_out)
         spent += N * Q
         chosen = -1

@@ -42,8 +42,6 @@ class Scratch:
         self.acc = z(B)
         self.acc2 = z(B)
         self.flag = z(B)
-        self.fpos = z(3, N, K + 2, B, dtype=np.float32)
-        self.lanes = z(2, B, dtype=np.int64)
         self.better = z(B)
         self.bits1 = z(B, dtype=np.uint64)
         self.bits2 = z(B, dtype=np.uint64)
