@@ -232,6 +232,18 @@ def test_pruned_pair_check_misses_no_near_pair(continuous):
     assert_costs_agree(model, wp)
 
 
+def test_memory_estimate_uses_the_kernels_block_size():
+    """``staghunt.budget`` (which must not import Numba) repeats the block size's formula: at
+    least 64 lanes, at most 256, a multiple of 8."""
+    from staghunt.budget import _block
+
+    for N in (1, 3, 8, 24, 60):
+        for K in (1, 10, 20, 40, 100):
+            assert _block(N, K) == kn.block_size(N, K)
+            assert 64 <= kn.block_size(N, K) <= 256 and kn.block_size(N, K) % 8 == 0
+    assert kn.block_size(24, 20) == 64 and kn.block_size(3, 10) == 256
+
+
 def test_kept_evaluation_passes_return_their_own_arrays_on_every_thread():
     """Small batches reuse a pass kept per thread: a result is never overwritten by the next
     evaluation of the same shape, a batch too large to keep gives the same values, and threads
