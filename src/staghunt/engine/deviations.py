@@ -75,7 +75,6 @@ class Deviations:
         return np.where(clear, run.res_out[:, 2, self.n], np.inf)
 
 
-
 def team_search(model: CostModel, plan: np.ndarray, costs: np.ndarray, max_evaluations: int, spent: int,
                 fractions: tuple[float, ...] = (), step: float = 0.0, min_step: float = 0.0) -> tuple[np.ndarray, int]:
     """:func:`staghunt.solvers.game.team_slide` (by ``fractions``, if any) or

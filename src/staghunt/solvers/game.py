@@ -173,7 +173,7 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
         return plan, spent
     found = _compiled(model, plan, evaluator, J, max_evaluations, spent, step=step, min_step=min_step) if compiled else None
     if found is not None:
-        return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
+        return found
     best = plan
     while step >= min_step and spent + N * 6 * K <= max_evaluations:
         cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
@@ -190,11 +190,15 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
 
 def _compiled(model: CostModel, plan: np.ndarray, evaluator: Evaluator, *search: Any,
               **options: Any) -> tuple[np.ndarray, int] | None:
-    """The plan and evaluations of the compiled team search of ``plan`` if ``evaluator`` is a
-    compiled engine's and its kernel is ready
-    (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`), else ``None``."""
+    """The plan (``plan`` itself if nothing improved, as the Python loops return it) and
+    evaluations of the compiled team search of ``plan`` if ``evaluator`` is a compiled engine's
+    and its kernel is ready (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`),
+    else ``None``."""
     engine = getattr(evaluator, "__self__", None)
-    return engine.team_search(model, plan, *search, **options) if hasattr(engine, "team_search") else None
+    found = engine.team_search(model, plan, *search, **options) if hasattr(engine, "team_search") else None
+    if found is None:
+        return None
+    return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
 
 
 def _in_order(total: np.ndarray, op: np.ufunc) -> np.ndarray:
@@ -229,7 +233,7 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
         return plan, spent
     found = _compiled(model, plan, evaluator, J, max_evaluations, spent, fractions=tuple(fractions)) if compiled else None
     if found is not None:
-        return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
+        return found
     best = plan
     starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
     rows = np.arange(K)
