@@ -369,6 +369,49 @@ def test_same_seed_same_result_for_any_thread_count(particles):
     assert not np.array_equal(other.best, outs[0].best)
 
 
+def test_stretch_length_changes_calls_not_results(monkeypatch):
+    """A run's iterations reach the compiled loop in stretches of at least ``CHUNK_ITERATIONS``,
+    longer when the pace allows (``CHUNK_SECONDS``): fewer calls, the same run."""
+    import staghunt.engine.loop as loop
+    import staghunt.engine.numba_engine as ne
+
+    assert loop.chunk_length(0.01, 25) == 125  # 0.4 ms an iteration: 0.05 s holds 125
+    assert loop.chunk_length(1.0, 25) == loop.CHUNK_ITERATIONS == 25  # slow iterations: never fewer
+    assert loop.chunk_length(0.0, 5) == 25
+    _, problem = scenario2_problem()
+    settings = SolverSettings(particles=40, iterations=60, waypoints=10)
+    NumbaEngine(threads=1).prepare()  # its warm-up runs call the loop too
+    calls = []
+    real = ne.iterate_chunk
+    monkeypatch.setattr(ne, "iterate_chunk", lambda it0, it1, *a: (calls.append((it0, it1)), real(it0, it1, *a))[1])
+    outs = {}
+    for seconds in (0.0, 1e9):
+        monkeypatch.setattr(loop, "CHUNK_SECONDS", seconds)
+        calls.clear()
+        outs[seconds] = NumbaEngine(threads=1).run_swarm(problem, settings, np.random.default_rng(5))
+        assert calls[0] == (0, 1) and calls[-1][1] == 61
+        assert len(calls) == (1 + 3 if seconds == 0.0 else 2)  # 25 + 25 + 10, or the 60 at once
+    assert np.array_equal(outs[0.0].best, outs[1e9].best)
+    assert np.array_equal(outs[0.0].history, outs[1e9].history)
+    assert np.array_equal(outs[0.0].record_history, outs[1e9].record_history)
+
+
+def test_deviation_passes_give_their_buffers_back():
+    """A deviation search borrows its block buffers for each call and gives them back (a fresh
+    set per search, about 1 MB for 3 UAVs, cost more than a short polish), with the same costs
+    on every call, whatever the buffers held before."""
+    from staghunt.engine.deviations import Deviations
+
+    model, base = _straight_routes(3, None)
+    dev = Deviations(model, base, 1)
+    paths = base[1][None] + np.random.default_rng(3).normal(0.0, 2.0, size=(5, *base[1].shape))
+    first = dev(paths)
+    path, Jn, spent = dev.polish(float(evaluate(model, base[None]).total[0, 1]), 200, 1.0, 0.1)
+    assert spent > 0 and np.isfinite(Jn)
+    assert np.array_equal(dev(paths), first)
+    assert dev._runs and all(not run.scratch for run in dev._runs.values())
+
+
 def test_adaptive_threads_probe_and_choose():
     busy = AdaptiveThreads(2)  # two threads slower: keeps one thread after the probe
     seen = []

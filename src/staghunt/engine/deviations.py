@@ -8,12 +8,11 @@ from dataclasses import replace
 
 import numpy as np
 
-from staghunt.costs import CostModel
+from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import kernel_args, no_swarm
 from staghunt.engine.numba_engine import (POLISH_PER_CALL, TEAM_SEARCH_PER_CALL, _evaluation_pass,
-                                         _model_arrays_cached, _Pass, evaluate)
-from staghunt.engine.scratch import Scratch
+                                         _model_arrays_cached, _Pass, _releasing, evaluate)
 
 
 class Deviations:
@@ -23,11 +22,13 @@ class Deviations:
     UAV ``n``'s path and its pairs (``MODE_DEVIATE``). Bit-identical to the full evaluation's
     ``J_n``, and ``inf`` exactly where the full evaluation's total violation is not zero."""
 
-    def __init__(self, model: CostModel, plan: np.ndarray, n: int) -> None:
+    def __init__(self, model: CostModel, plan: np.ndarray, n: int, costs: Costs | None = None) -> None:
+        """``costs``: the compiled :func:`~staghunt.engine.numba_engine.evaluate` of ``plan[None]``
+        if the caller made it (else made here)."""
         plan = np.array(plan, dtype=np.float64, order="C", copy=True)
         N, K = plan.shape[0], plan.shape[1]
         ma = _model_arrays_cached(model)
-        c = evaluate(model, plan[None])
+        c = costs if costs is not None else evaluate(model, plan[None])
         constants = np.concatenate([c.terms[0], c.violation[0][:, :2]], axis=1).ravel()
         self.ma = replace(ma, par=np.concatenate([ma.par, constants]))
         member = np.full(N, -1, dtype=np.int64)
@@ -37,20 +38,19 @@ class Deviations:
         self.lower = np.array(model.lower, dtype=np.float64)
         self.upper = np.array(model.upper, dtype=np.float64)
         self._runs: dict[int, _Pass] = {}
-        self._scratch: Scratch | None = None
 
     def _run(self, Q: int) -> _Pass:
         """The pass over ``Q`` allocations (the plan with UAV ``n``'s rows to fill), made once per
-        batch size (a polish sweep, its combined move) and reused."""
+        batch size (a polish sweep, its combined move) and reused; its block buffers are borrowed
+        from the pool for each call (:meth:`_Pass.ensure_scratch`): a fresh set, about 1 MB of
+        zeroed pages for 3 UAVs, cost more than a short polish."""
         run = self._runs.get(Q)
         if run is None:
             N, K = self.plan.shape[0], self.plan.shape[1]
             team = np.repeat(self.plan[None], Q, axis=0)
             run = self._runs[Q] = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
             run.mode = kn.MODE_DEVIATE
-            if self._scratch is None:
-                self._scratch = Scratch(N, K, 0, run.B)
-            run.scratch = [self._scratch]
+        run.ensure_scratch(1)
         return run
 
     def polish(self, J: float, max_evaluations: int, step: float, min_step: float) -> tuple[np.ndarray, float, int]:
@@ -58,19 +58,19 @@ class Deviations:
         call (:func:`staghunt.engine.kernels.polish`: the same decisions on the same costs, so
         the same path). Returns the ``(K, 3)`` path, its ``J_n`` and the evaluations spent."""
         K = self.plan.shape[1]
-        run = self._run(6 * K + 1)  # the 6 K one-coordinate moves and their combination
         path = self.plan[self.n].copy()
-        Jn, spent = kn.polish(self.n, float(step), float(min_step), int(max_evaluations), float(J), self.lower,
-                              self.upper, path, *kernel_args(kn.polish, run, self.ma, self.sa, run.scratch[0],
-                                                             per_call=POLISH_PER_CALL))
+        with _releasing(self._run(6 * K + 1)) as run:  # the 6 K one-coordinate moves and their combination
+            Jn, spent = kn.polish(self.n, float(step), float(min_step), int(max_evaluations), float(J), self.lower,
+                                  self.upper, path, *kernel_args(kn.polish, run, self.ma, self.sa, run.scratch[0],
+                                                                 per_call=POLISH_PER_CALL))
         return path, float(Jn), int(spent)
 
     def __call__(self, paths: np.ndarray) -> np.ndarray:
         """``(Q,)`` ``J_n`` for ``paths`` ``(Q, K, 3)``; ``inf`` where infeasible."""
         Q = len(paths)
-        run = self._run(Q)
-        run.wp[:, self.n] = paths
-        run.work(0, Q, 0)
+        with _releasing(self._run(Q)) as run:
+            run.wp[:, self.n] = paths
+            run.work(0, Q, 0)
         clear = np.all(run.vio_out.reshape(Q, -1) == 0, axis=1)
         return np.where(clear, run.res_out[:, 2, self.n], np.inf)
 

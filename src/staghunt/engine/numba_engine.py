@@ -34,8 +34,8 @@ from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import ModelArrays, SwarmArrays, kernel_args, model_arrays, no_swarm, swarm_arrays
 from staghunt.engine.jit import entry_table
 from staghunt.engine.loop import (
-    CHUNK_ITERATIONS,
     MIN_SHARED_PARTICLES,
+    chunk_length,
     iterate_chunk,
     kernel_threads,
     parallel_block,
@@ -453,13 +453,17 @@ def _run(
             iterate_chunk(it0, it1, parallel_block(P, run.B, threads), threads, key, state, run, gcost,
                      history, rhistory, hviol, stack)
 
+        t0 = time.perf_counter()
         chunk(0, 1, control.max_threads)
+        longest = chunk_length(time.perf_counter() - t0, 1)
         it = 1
         while it <= iterations:
-            threads, length = control.chunk(iterations - it + 1, CHUNK_ITERATIONS)
+            threads, length = control.chunk(iterations - it + 1, longest)
             t0 = time.perf_counter()
             chunk(it, it + length, threads)
-            control.record_chunk(time.perf_counter() - t0, length)
+            seconds = time.perf_counter() - t0
+            control.record_chunk(seconds, length)
+            longest = chunk_length(seconds, length)
             if progress is not None:
                 for i in range(it, it + length):
                     progress(i, iterations, history[i].copy())
@@ -566,13 +570,14 @@ class NumbaEngine:
 
         return team_search(model, plan, costs, max_evaluations, spent, **search) if team_search_ready() else None
 
-    def deviations(self, model: CostModel, plan: np.ndarray, n: int) -> Deviations:
+    def deviations(self, model: CostModel, plan: np.ndarray, n: int, costs: Costs | None = None) -> Deviations:
         """UAV ``n``'s deviation costs from the feasible ``plan`` (see
-        :class:`staghunt.engine.deviations.Deviations`)."""
+        :class:`staghunt.engine.deviations.Deviations`); ``costs``: this engine's
+        :meth:`evaluate` of ``plan[None]``, if the caller has it."""
         from staghunt.engine.deviations import Deviations
 
         self.prepare()
-        return Deviations(model, plan, n)
+        return Deviations(model, plan, n, costs)
 
     def __repr__(self) -> str:
         return f"NumbaEngine(threads={self.threads!r})"

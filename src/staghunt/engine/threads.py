@@ -175,6 +175,8 @@ class AdaptiveThreads:
     def record_chunk(self, seconds: float, length: int) -> None:
         """Wall time of a stretch from :meth:`chunk`: each of its ``length`` iterations is taken
         to have lasted ``seconds / length`` (a probe due during the stretch starts after it)."""
+        if not self.adaptive:  # nothing to decide: a pinned count keeps no timings
+            return
         for _ in range(length):
             probing = self._probe_left > 0
             self.record(seconds / length)

@@ -268,13 +268,13 @@ def _warm_particles(problem_space, start: np.ndarray, paths: list[np.ndarray], r
                     particles: int) -> np.ndarray:
     """``(W, 1, K, 3)`` spherical warm particles: ``paths`` (current first) encoded, then
     perturbations of the current one."""
-    enc = [encode(p[None, None], start, problem_space)[0] for p in paths]  # each (1, K, 3)
+    enc = encode(np.stack(paths)[:, None], start, problem_space)  # (len(paths), 1, K, 3), in one call
     local = int(LOCAL_SHARE * particles)
     if local > 0:
         lo, hi = problem_space.lower[0], problem_space.upper[0]  # (3,)
-        noise = rng.normal(0.0, LOCAL_SPREAD, size=(local, 1, enc[0].shape[1], 3)) * (hi - lo)
-        enc.extend(np.clip(enc[0][None] + noise, lo, hi))
-    return np.stack(enc)[:particles]
+        noise = rng.normal(0.0, LOCAL_SPREAD, size=(local, 1, enc.shape[2], 3)) * (hi - lo)
+        enc = np.concatenate([enc, np.clip(enc[0][None] + noise, lo, hi)])
+    return enc[:particles]
 
 
 @dataclass(frozen=True, eq=False)

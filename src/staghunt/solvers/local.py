@@ -53,7 +53,7 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     # Only UAV n's path changes and the others' stay clear of each other (the plan is feasible):
     # an engine may evaluate the deviation alone (same J_n, same feasibility verdicts).
     engine = getattr(evaluator, "__self__", None)
-    fast = engine.deviations(model, plan, n) if hasattr(engine, "deviations") else None
+    fast = engine.deviations(model, plan, n, current) if hasattr(engine, "deviations") else None
     if fast is not None and compiled:  # the same search in one compiled call
         path, _, spent = fast.polish(J, max_evaluations, step, min_step)
         if np.array_equal(path, plan[n]):
