@@ -12,7 +12,7 @@ budget (the built-ins: the paper's 2000 particles x 1500 iterations, K = 10). Ma
    give that work: a parallel loop cannot beat it, and a shared host moves it from run to run.
 1. **Per evaluation** (issue 17, targets 1-2), per scenario and seed (``--seeds``): Algorithm 1
    (``paper``) and the default method (``game``, full budget) on 1 thread and on 2 threads
-   (pinned), ``--repeats`` times (default 3), methods and thread counts alternated (a repeat
+   (pinned), ``--repeats`` times (default 5), methods and thread counts alternated (a repeat
    makes the same plan: checked). Reported: ns per path evaluation (each run's best time),
    ``game / paper`` per evaluation on each thread count (target: <= 1.2 on one thread) and
    each method's 2-thread speed-up (target: ``game`` >= 1.5x), both from the best times and
@@ -33,8 +33,8 @@ budget (the built-ins: the paper's 2000 particles x 1500 iterations, K = 10). Ma
    ``game`` search and then the certificate. For comparison, the default run (every start
    searched and certified, the selected equilibrium) in the same loop.
 
-    python benchmarks/bench_game.py                          # ~4-8 min on a 2-core machine
-    python benchmarks/bench_game.py --seeds 1 --certified-seeds 1-3 --no-write   # a quick look
+    python benchmarks/bench_game.py                          # ~6-10 min on a 2-core machine
+    python benchmarks/bench_game.py --seeds 1 --repeats 1 --ceiling-rounds 0 --certified-seeds 1-3 --no-write  # a look
 
 Writes ``benchmarks/results/game.md`` and ``game.json`` (unless ``--no-write``).
 """
@@ -76,7 +76,7 @@ def per_evaluation(scenario_name: str, seed: int, particles: int | None, iterati
     row: dict = {"scenario": scenario_name, "seed": seed, "particles": settings.particles,
                  "iterations": settings.iterations, "repeats": repeats}
     best: dict = {}  # (method, threads) -> least wall time, and least CPU time on one thread
-    times: dict = {}  # (method, threads) -> every repeat's wall time, in order
+    times: dict = {}  # (method, threads) -> every repeat's ns per path evaluation, in order
     runs: dict = {}
     for _ in range(repeats):  # 1 and 2 threads alternated, each method's best kept
         for t in (1, 2):
@@ -308,7 +308,7 @@ def main() -> None:
     ap.add_argument("--seeds", default="1-3")
     ap.add_argument("--small-seeds", default="1-3")
     ap.add_argument("--certified-seeds", default="1-10")
-    ap.add_argument("--repeats", type=int, default=3,
+    ap.add_argument("--repeats", type=int, default=5,
                     help="section 1: alternated runs per seed, method and thread count; the best kept")
     ap.add_argument("--ceiling-rounds", type=int, default=7, help="rounds of section 0 (0: skip it)")
     ap.add_argument("--particles", type=int)
