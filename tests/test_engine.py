@@ -369,6 +369,36 @@ def test_same_seed_same_result_for_any_thread_count(particles):
     assert not np.array_equal(other.best, outs[0].best)
 
 
+@pytest.mark.parametrize("terrain", [None, "bilinear"])
+def test_deviation_swarm_steps_on_the_fixed_paths(terrain, monkeypatch):
+    """A deviation swarm's blocks leave the fixed team-mates' rows as the compiled loop filled
+    them once per call, on every thread's buffers and lanes. Pooled buffers hold another
+    deviation search's rows first, and the adaptive engine's probes switch between 1 and 2
+    threads (blocks of 256 and of 32 lanes) after an initial draw on 2: the same run as on 1, 2
+    and 3 pinned threads, and every best ``J_n`` is the NumPy reference's cost of that path
+    against the fixed ones."""
+    import staghunt.engine.numba_engine as ne
+    from staghunt.solvers.problem import solo_problem
+
+    model, base = _straight_routes(3, terrain, K=10)
+    settings = SolverSettings(particles=230, iterations=40, waypoints=10)
+    monkeypatch.setattr(ne, "usable_cores", lambda: 2)
+    elsewhere = base + np.array([0.0, 6.0, 3.0])  # other fixed paths, the same shapes
+    for t in (None, 1, 2, 3):  # leave their rows in the pooled buffers of every thread count
+        NumbaEngine(threads=t).run_swarm(solo_problem(model, elsewhere, 1, 0.5), settings, np.random.default_rng(2))
+    problem = solo_problem(model, base, 1, 0.5)
+    outs = [NumbaEngine(threads=t).run_swarm(problem, settings, np.random.default_rng(8)) for t in (1, None, 2, 3)]
+    for out in outs[1:]:
+        assert np.array_equal(out.best, outs[0].best) and np.array_equal(out.history, outs[0].history)
+    team = base.copy()
+    team[1] = outs[0].best_waypoints[1]
+    np.testing.assert_array_equal(outs[0].best_waypoints[[0, 2]], base[[0, 2]])
+    want = evaluate(model, team[None])
+    assert want.total_violation[0] == outs[0].best_violation == 0
+    np.testing.assert_allclose(outs[0].best_cost[0], want.total[0, 1], rtol=1e-9)
+    assert outs[0].history[-1, 0] < outs[0].history[0, 0]  # the swarm moved
+
+
 def test_stretch_length_changes_calls_not_results(monkeypatch):
     """A run's iterations reach the compiled loop in stretches of at least ``CHUNK_ITERATIONS``,
     longer when the pace allows (``CHUNK_SECONDS``): fewer calls, the same run."""

@@ -763,8 +763,9 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     Then decode (:func:`staghunt.encoding.decode`: steps from each swarm's start, clamped to its
     box after every step) into ``sww (S, 3, K, B)`` and assemble the team
     (:meth:`~staghunt.solvers.problem.SwarmProblem.team_waypoints`) into ``px``, ``py``
-    (columns ``1..K``) and ``ph``. Scratch: ``stx``, ``sty``, ``sth`` ``(B,)`` steps, ``prev``
-    ``(3, B)``; ``bits1``, ``bits2`` ``(B,)`` uint64.
+    (columns ``1..K``) and ``ph``; a fixed path's rows (``member[n] < 0``) in ``MODE_STEP`` of
+    a problem with fixed paths are left as :func:`_fixed_rows` filled them. Scratch: ``stx``,
+    ``sty``, ``sth`` ``(B,)`` steps, ``prev`` ``(3, B)``; ``bits1``, ``bits2`` ``(B,)`` uint64.
     """
     S, K, _, P = X.shape
     u1 = bits1.view(np.float64)
@@ -830,8 +831,11 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
                 for b in range(nb):
                     sww[s, c, k, b] = prev[c, b]
 
+    kept = mode == MODE_STEP and par.shape[0] > N_PAR  # the fixed rows: filled once per call by iterate
     for n in range(member.shape[0]):
         m = member[n]
+        if m < 0 and kept:
+            continue
         for k in range(K):
             if m < 0:
                 _fill(px[n, k + 1], nb, fixed[n, k, 0])
@@ -848,17 +852,19 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
 
 
 @subroutine
-def _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo) -> None:  # noqa: ANN001
+def _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo, kept) -> None:  # noqa: ANN001
     """Start and goal columns of the full paths, and absolute ``z`` of the free waypoints.
     With ``solo`` (fixed paths: a deviation search or ``MODE_DEVIATE``) a UAV with
     ``member[n] < 0`` has the same path in every lane: its ground is looked up in lane 0 only
     and copied (the same numbers; on a DEM site the lookups of the fixed team-mates were most
-    of a deviation's cost)."""
+    of a deviation's cost); with ``kept`` its rows are left as :func:`_fixed_rows` filled them."""
     N, K = ph.shape[0], ph.shape[1]
     flat = par[P_TERRAIN] == 0.0
     bilinear = par[P_TERRAIN] == 3.0
     ox, oy, cell = par[P_OX], par[P_OY], par[P_CELL]
     for n in range(N):
+        if kept and member[n] < 0:
+            continue
         _fill(px[n, 0], nb, uav[n, U_START])
         _fill(py[n, 0], nb, uav[n, U_START + 1])
         _fill(pz[n, 0], nb, uav[n, U_START_Z])
@@ -964,15 +970,22 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     """Entry 1: particles ``q0 .. q0+nb`` moved (``MODE_INIT``, ``MODE_STEP``) and decoded into
     team paths, or (``MODE_EVALUATE``) waypoints ``wp`` loaded; absolute altitudes into
     ``px``, ``py``, ``pz`` ``(N, K+2, B)`` and ``ph`` ``(N, K, B)``; then every UAV's ``J_s``
-    terms ``terms (N, 5, B)`` and obstacle/ground violations ``vio[:, 0:2]``."""
+    terms ``terms (N, 5, B)`` and obstacle/ground violations ``vio[:, 0:2]``. In ``MODE_STEP``
+    (only ever run by :func:`iterate`) a fixed path's rows of all these are not written: they
+    are the same in every lane and iteration, and :func:`iterate` fills them once per call
+    (:func:`_fixed_rows`); a deviation swarm wrote them again in every block, 53 rows of the
+    block's width per team-mate for 10 waypoints."""
     if mode >= MODE_EVALUATE:
         _load(q0, nb, wp, px, py, ph)
     else:
         _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets,
                  fixed, par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2)
     solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
-    _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo)
+    kept = solo and mode == MODE_STEP  # the fixed paths' rows: filled once per call by iterate
+    _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo, kept)
     for n in range(uav.shape[0]):
+        if kept and member[n] < 0:
+            continue
         if solo and member[n] < 0:  # a fixed path: its constant terms (see SOLO_STRIDE)
             base = N_PAR + SOLO_STRIDE * n
             for i in range(5):
@@ -1086,6 +1099,40 @@ def _block(mode, q0, nb, it, key, inertia, t, shared, scratch, probe) -> None:  
                vio_out, res_out)
 
 
+@subroutine
+def _fixed_rows(member, fixed, uav, grid, par, px, py, pz, ph, terms, vio) -> None:  # noqa: ANN001
+    """In every thread's scratch (the leading axis of ``px .. vio``) and on all of its lanes,
+    the rows of the fixed paths (``member[n] < 0``) of a problem with fixed paths, as
+    :func:`uav_pass` writes them in ``MODE_INIT``: waypoints, start and goal columns, absolute
+    ``z`` and the constant terms and violations (see ``SOLO_STRIDE``); the same numbers."""
+    if par.shape[0] <= N_PAR:
+        return
+    K = ph.shape[2]
+    flat = par[P_TERRAIN] == 0.0
+    for t in range(px.shape[0]):
+        B = px.shape[3]
+        for n in range(member.shape[0]):
+            if member[n] >= 0:
+                continue
+            for k in range(K):
+                _fill(px[t, n, k + 1], B, fixed[n, k, 0])
+                _fill(py[t, n, k + 1], B, fixed[n, k, 1])
+                _fill(ph[t, n, k], B, fixed[n, k, 2])
+                z = fixed[n, k, 2] + 0.0 if flat else ground_z(fixed[n, k, 0], fixed[n, k, 1], fixed[n, k, 2], grid, par)
+                _fill(pz[t, n, k + 1], B, z)
+            _fill(px[t, n, 0], B, uav[n, U_START])
+            _fill(py[t, n, 0], B, uav[n, U_START + 1])
+            _fill(pz[t, n, 0], B, uav[n, U_START_Z])
+            _fill(px[t, n, K + 1], B, uav[n, U_GOAL])
+            _fill(py[t, n, K + 1], B, uav[n, U_GOAL + 1])
+            _fill(pz[t, n, K + 1], B, uav[n, U_GOAL_Z])
+            base = N_PAR + SOLO_STRIDE * n
+            for i in range(5):
+                _fill(terms[t, n, i], B, par[base + i])
+            for i in range(2):
+                _fill(vio[t, n, i], B, par[base + 5 + i])
+
+
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
 def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, member, offsets, fixed,  # noqa: ANN001
             par, uav, cyl, prm, pedge, grid, weights, heads, tails, mu, ref_diff, players,
@@ -1101,7 +1148,8 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
     thread's scratch, the leading axis of ``sww .. res``) or, with ``serial``, in a plain loop
     on scratch 0 (no parallel launch per iteration). Every particle's work is its own and the
     global best is chosen after the loop, so results depend neither on the thread count nor on
-    the block size."""
+    the block size. The fixed paths' rows of every thread's scratch are filled first
+    (:func:`_fixed_rows`): blocks in ``MODE_STEP`` do not write them again."""
     P = X.shape[3]
     n_blocks = (P + bs - 1) // bs
     shared = (X, V, PB, gbest, initial, sw, member, offsets, fixed, par, wp, uav, cyl, prm, pedge, grid, weights,
@@ -1110,6 +1158,7 @@ def iterate(it0, it1, bs, serial, key, state, X, V, PB, gbest, initial, sw, memb
     scratch = (sww, px, py, pz, ph, stx, sty, sth, prev, bits1, bits2, seg, sub, ang, tmp, acc, acc2, flag,
                terms, vio, form, hit, better, res)
     _block(MODE_STEP, 0, 0, it0, key, 0.0, 0, shared, scratch, True)  # raises here, not in the loop
+    _fixed_rows(member, fixed, uav, grid, par, px, py, pz, ph, terms, vio)
     for it in range(it0, it1):
         mode = MODE_INIT if it == 0 else MODE_STEP
         inertia = state[0]
