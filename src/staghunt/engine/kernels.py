@@ -1107,19 +1107,18 @@ def _fixed_rows(member, fixed, uav, grid, par, px, py, pz, ph, terms, vio) -> No
     ``z`` and the constant terms and violations (see ``SOLO_STRIDE``); the same numbers."""
     if par.shape[0] <= N_PAR:
         return
-    K = ph.shape[2]
+    K, B = ph.shape[2], ph.shape[3]
     flat = par[P_TERRAIN] == 0.0
     for t in range(px.shape[0]):
-        B = px.shape[3]
         for n in range(member.shape[0]):
             if member[n] >= 0:
                 continue
             for k in range(K):
-                _fill(px[t, n, k + 1], B, fixed[n, k, 0])
-                _fill(py[t, n, k + 1], B, fixed[n, k, 1])
-                _fill(ph[t, n, k], B, fixed[n, k, 2])
-                z = fixed[n, k, 2] + 0.0 if flat else ground_z(fixed[n, k, 0], fixed[n, k, 1], fixed[n, k, 2], grid, par)
-                _fill(pz[t, n, k + 1], B, z)
+                x, y, h = fixed[n, k, 0], fixed[n, k, 1], fixed[n, k, 2]
+                _fill(px[t, n, k + 1], B, x)
+                _fill(py[t, n, k + 1], B, y)
+                _fill(ph[t, n, k], B, h)
+                _fill(pz[t, n, k + 1], B, h + 0.0 if flat else ground_z(x, y, h, grid, par))
             _fill(px[t, n, 0], B, uav[n, U_START])
             _fill(py[t, n, 0], B, uav[n, U_START + 1])
             _fill(pz[t, n, 0], B, uav[n, U_START_Z])
