@@ -753,7 +753,7 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
 
 @subroutine
 def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets, fixed,  # noqa: ANN001
-             par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2) -> None:
+             par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2, kept) -> None:
     """Move particles ``q0 .. q0+nb`` and build their team waypoints.
 
     ``MODE_INIT``: uniform draw in the search ranges (``initial`` ``(W, S, K, 3)``: warm
@@ -763,8 +763,8 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     Then decode (:func:`staghunt.encoding.decode`: steps from each swarm's start, clamped to its
     box after every step) into ``sww (S, 3, K, B)`` and assemble the team
     (:meth:`~staghunt.solvers.problem.SwarmProblem.team_waypoints`) into ``px``, ``py``
-    (columns ``1..K``) and ``ph``; a fixed path's rows (``member[n] < 0``) in ``MODE_STEP`` of
-    a problem with fixed paths are left as :func:`_fixed_rows` filled them. Scratch: ``stx``,
+    (columns ``1..K``) and ``ph``; with ``kept`` (see :func:`uav_pass`) a fixed path's rows
+    (``member[n] < 0``) are left as :func:`_fixed_rows` filled them. Scratch: ``stx``,
     ``sty``, ``sth`` ``(B,)`` steps, ``prev`` ``(3, B)``; ``bits1``, ``bits2`` ``(B,)`` uint64.
     """
     S, K, _, P = X.shape
@@ -831,7 +831,6 @@ def _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
                 for b in range(nb):
                     sww[s, c, k, b] = prev[c, b]
 
-    kept = mode == MODE_STEP and par.shape[0] > N_PAR  # the fixed rows: filled once per call by iterate
     for n in range(member.shape[0]):
         m = member[n]
         if m < 0 and kept:
@@ -975,13 +974,13 @@ def uav_pass(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, membe
     are the same in every lane and iteration, and :func:`iterate` fills them once per call
     (:func:`_fixed_rows`); a deviation swarm wrote them again in every block, 53 rows of the
     block's width per team-mate for 10 waypoints."""
+    solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
+    kept = solo and mode == MODE_STEP  # the fixed paths' rows: filled once per call by iterate
     if mode >= MODE_EVALUATE:
         _load(q0, nb, wp, px, py, ph)
     else:
         _advance(mode, q0, nb, it, key, inertia, X, V, PB, gbest, initial, sw, member, offsets,
-                 fixed, par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2)
-    solo = par.shape[0] > N_PAR and mode != MODE_EVALUATE
-    kept = solo and mode == MODE_STEP  # the fixed paths' rows: filled once per call by iterate
+                 fixed, par, sww, px, py, ph, stx, sty, sth, prev, bits1, bits2, kept)
     _absolute_z(nb, px, py, ph, pz, uav, grid, par, member, solo, kept)
     for n in range(uav.shape[0]):
         if kept and member[n] < 0:
