@@ -196,7 +196,7 @@ def test_evaluate_agrees_zero_weights_and_beta():
 
 @pytest.mark.parametrize("continuous", [True, False])
 def test_pruned_pair_check_misses_no_near_pair(continuous):
-    """Past N = 4 the pair check is pruned by segment boxes over the block's lanes (exact). On a
+    """Past N = 4 the pair check is pruned by boxes over the block's lanes (exact). On a
     site 40 km from its origin, with team-mates flying parallel at the separation limit plus or
     minus 1e-7 m, 1e-3 m and 0, or crossing between waypoints, every collision and deficit is
     the reference's."""
@@ -230,6 +230,51 @@ def test_pruned_pair_check_misses_no_near_pair(continuous):
     assert np.array_equal(got.violation == 0, ref.violation == 0)
     assert (ref.violation[:, :, 2] > 0).sum() > 40 and (ref.violation[16:, :, 2] == 0).any()
     assert_costs_agree(model, wp)
+
+
+@pytest.mark.parametrize("continuous", [True, False])
+def test_pair_pruning_follows_the_relative_position(continuous):
+    """The pair check skips a pair's segment when the pair's relative position stays farther
+    than its limit on some axis in every lane of the block, even though the two UAVs' boxes
+    of the segment overlap (a team-mate right ahead, both moving along the segment). At the
+    limit plus or minus 1e-7 m and 1e-3 m, ahead and behind, and with the team-mate passing
+    through the UAV between waypoints (apart at both ends), every collision and deficit is
+    the reference's."""
+    import dataclasses
+
+    team = make_model(8, continuous=continuous)  # flying north, 10 m apart on a row
+    limit = team.safe_distance + 2.0 * team.radius[0]
+    P, K = 8, 6  # one block
+    rng = np.random.default_rng(31)
+    t = (np.arange(1, K + 1) / (K + 1))[None, None, :, None]
+    line = team.starts[None, :, None, :] + t * (team.goals - team.starts)[None, :, None, :]
+    base = line + rng.normal(0.0, 0.3, size=(P, team.n_uavs, K, 3))
+    deficits = {}
+    for case in ("ahead", "behind", "through"):
+        for delta in (-1e-3, -1e-7, 0.0, 1e-7, 2e-6, 1e-3, 0.5):
+            if case == "through" and delta != 0.5:
+                continue
+            wp = base.copy()
+            north = np.zeros((P, K, 3))
+            if case == "through":  # 5.5 m ahead at one waypoint, behind at the next
+                north[:, :, 1] = np.where(np.arange(K) % 2 == 0, 1.0, -1.0) * (limit + 1.5)
+            else:
+                north[:, :, 1] = (1.0 if case == "ahead" else -1.0) * (limit + delta)
+            wp[:, 1] = wp[:, 0] + north
+            ends = [np.array(team.starts), np.array(team.goals)]  # UAV 1's placed likewise
+            for e, i in zip(ends, (0, K - 1)):
+                e[1] = e[0] + north[0, i]
+            model = dataclasses.replace(team, starts=frozen(ends[0]), goals=frozen(ends[1]),
+                                        start_abs=frozen(ends[0]), goal_abs=frozen(ends[1]))
+            got = fast_evaluate(model, wp)
+            ref = evaluate(model, wp)
+            assert np.array_equal(got.violation == 0, ref.violation == 0), (case, delta)
+            assert_costs_agree(model, wp)
+            deficits[case, delta] = ref.violation[:, :2, 2]
+    for case in ("ahead", "behind"):
+        assert (deficits[case, -1e-3] > 0).all() and (deficits[case, -1e-7] > 0).all()
+        assert (deficits[case, 1e-3] == 0).all() and (deficits[case, 0.5] == 0).all()
+    assert (deficits["through", 0.5] > 0).all() == continuous
 
 
 def test_memory_estimate_uses_the_kernels_block_size():

@@ -559,8 +559,9 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     Scratch: ``form (3, N, S, B)`` = ``E`` (eq. 5), nearest squared distance at the waypoints,
     along the segments; ``hit (2, S, B)`` collisions at waypoints / along segments;
     ``tmp (>= S, B)``; ``acc``, ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a
-    pair's segments whose bounding boxes over the block's lanes lie farther apart than its
-    separation limit are skipped (exact; see the comment in the body). With ``solo`` (a
+    pair's segments along which its relative position stays, in every lane of the block,
+    farther than its separation limit on some axis are skipped (exact; see the comment in
+    the body). With ``solo`` (a
     problem with fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of
     ``players`` (``every``: the collisions of all UAVs, from those pairs), and pairs are
     pruned at any N.
@@ -610,18 +611,22 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
         for j in range(S):
             _fill(near2[n, j], nb, np.inf)
             _fill(seg2[n, j], nb, np.inf)
-    # Pruning past small N: per UAV and segment, the bounding box of the segment over the
-    # block's lanes (the union of its ends' boxes, each waypoint's made once). A pair whose
-    # boxes on segment j are farther apart than its separation limit (plus a guard) is farther
-    # apart than the limit all along that segment in every lane, so its distances there cannot
-    # make a collision or a deficit: they are skipped (an entry of ``near2``/``seg2`` may then
-    # stay above its true value, but only where both exceed every limit, which decides
-    # nothing). Exact: the same collisions, deficits and J_f.
+    # Pruning past small N: per UAV and waypoint, the bounding box of its position over the
+    # block's lanes. In every lane, the relative position p_a - p_c of a pair at waypoint i
+    # (as the kernel rounds it: rounding is monotone) lies in the box's difference,
+    # [lo_a - hi_c, hi_a - lo_c] per axis, so along segment j it stays in the union of the
+    # differences at its ends. Where that union lies farther than the pair's separation limit
+    # (plus a guard, far above the rounding of the closest approach) from 0 on some axis, the
+    # pair is farther apart than the limit all along the segment and at its end waypoint in
+    # every lane: its distances there cannot make a collision or a deficit and are skipped
+    # (an entry of ``near2``/``seg2`` may then stay above its true value, but only where both
+    # exceed every limit, which decides nothing). Exact: the same collisions, deficits and
+    # J_f. The union of differences is tighter than the gap between the two UAVs' boxes of
+    # the segment: the team moves together along a segment, which those boxes ignore.
     prune = N > PRUNE_MIN_UAVS or solo
-    box = np.empty((6, N, S)) if prune else np.empty((6, 1, 1))
+    box = np.empty((6, N, K + 2)) if prune else np.empty((6, 1, 1))  # lo, hi of x, y, z
     near = np.ones(S, dtype=np.int64)
     if prune:
-        point = np.empty((6, K + 2))  # one UAV's box of each waypoint over the lanes
         for n in range(N):
             # With ``solo`` a UAV other than the players has one fixed path in every lane.
             lanes = nb if not solo or _is_player(players, n) else min(nb, 1)
@@ -639,16 +644,12 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                     y1 = max(y1, py[n, i, b])
                     z0 = min(z0, pz[n, i, b])
                     z1 = max(z1, pz[n, i, b])
-                point[0, i] = x0
-                point[1, i] = x1
-                point[2, i] = y0
-                point[3, i] = y1
-                point[4, i] = z0
-                point[5, i] = z1
-            for j in range(S):
-                for q in range(0, 6, 2):
-                    box[q, n, j] = min(point[q, j], point[q, j + 1])
-                    box[q + 1, n, j] = max(point[q + 1, j], point[q + 1, j + 1])
+                box[0, n, i] = x0
+                box[1, n, i] = x1
+                box[2, n, i] = y0
+                box[3, n, i] = y1
+                box[4, n, i] = z0
+                box[5, n, i] = z1
     dw = tmp[0]  # a pair's squared distances on one segment: at its end waypoint, along it
     ds = tmp[1]
     for a in range(N):
@@ -661,9 +662,11 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
                 reach = max(uav[a, U_LIMIT], uav[c, U_LIMIT]) + PRUNE_GUARD
                 n_near = 0
                 for j in range(S):
-                    g = max(max(box[0, c, j] - box[1, a, j], box[0, a, j] - box[1, c, j]),
-                            max(max(box[2, c, j] - box[3, a, j], box[2, a, j] - box[3, c, j]),
-                                max(box[4, c, j] - box[5, a, j], box[4, a, j] - box[5, c, j])))
+                    g = -np.inf  # the largest distance of the union from 0 over the axes
+                    for q in range(0, 6, 2):
+                        lo = min(box[q, a, j] - box[q + 1, c, j], box[q, a, j + 1] - box[q + 1, c, j + 1])
+                        hi = max(box[q + 1, a, j] - box[q, c, j], box[q + 1, a, j + 1] - box[q, c, j + 1])
+                        g = max(g, max(lo, -hi))
                     k = 0 if g > reach else 1
                     near[j] = k
                     n_near += k
