@@ -128,7 +128,7 @@ def main() -> None:
              f"P = {P} team allocations per call, best of {rounds} rounds x {reps} calls (all cases in every round);",
              "ns per path = ns per team evaluation / N.",
              "Worlds and populations: see the docstring of benchmarks/scaling_nk.py. Separation pairs are",
-             "pruned by segment bounding boxes past N = 4 (exact).", ""]
+             "pruned past N = 4 by the boxes of their relative positions over a block's lanes (exact).", ""]
     for w, z in CONDITIONS:
         lines += [f"## {w}, waypoint noise {z:g} m", "",
                   "| N | " + " | ".join(f"K = {K}: ns/team | ns/path" for K in KS) + " |",

@@ -249,32 +249,31 @@ def test_pair_pruning_follows_the_relative_position(continuous):
     t = (np.arange(1, K + 1) / (K + 1))[None, None, :, None]
     line = team.starts[None, :, None, :] + t * (team.goals - team.starts)[None, :, None, :]
     base = line + rng.normal(0.0, 0.3, size=(P, team.n_uavs, K, 3))
+    gaps = (-1e-3, -1e-7, 0.0, 1e-7, 2e-6, 1e-3, 0.5)  # beyond the limit
+    cases = [(side, gap) for side in (1.0, -1.0) for gap in gaps] + [(0.0, 1.5)]
     deficits = {}
-    for case in ("ahead", "behind", "through"):
-        for delta in (-1e-3, -1e-7, 0.0, 1e-7, 2e-6, 1e-3, 0.5):
-            if case == "through" and delta != 0.5:
-                continue
-            wp = base.copy()
-            north = np.zeros((P, K, 3))
-            if case == "through":  # 5.5 m ahead at one waypoint, behind at the next
-                north[:, :, 1] = np.where(np.arange(K) % 2 == 0, 1.0, -1.0) * (limit + 1.5)
-            else:
-                north[:, :, 1] = (1.0 if case == "ahead" else -1.0) * (limit + delta)
-            wp[:, 1] = wp[:, 0] + north
-            ends = [np.array(team.starts), np.array(team.goals)]  # UAV 1's placed likewise
-            for e, i in zip(ends, (0, K - 1)):
-                e[1] = e[0] + north[0, i]
-            model = dataclasses.replace(team, starts=frozen(ends[0]), goals=frozen(ends[1]),
-                                        start_abs=frozen(ends[0]), goal_abs=frozen(ends[1]))
-            got = fast_evaluate(model, wp)
-            ref = evaluate(model, wp)
-            assert np.array_equal(got.violation == 0, ref.violation == 0), (case, delta)
-            assert_costs_agree(model, wp)
-            deficits[case, delta] = ref.violation[:, :2, 2]
-    for case in ("ahead", "behind"):
-        assert (deficits[case, -1e-3] > 0).all() and (deficits[case, -1e-7] > 0).all()
-        assert (deficits[case, 1e-3] == 0).all() and (deficits[case, 0.5] == 0).all()
-    assert (deficits["through", 0.5] > 0).all() == continuous
+    for side, gap in cases:
+        wp = base.copy()
+        north = np.zeros((P, K, 3))  # UAV 1 from UAV 0, ahead (1) or behind (-1) it
+        if side == 0.0:  # 5.5 m ahead at one waypoint, behind at the next: passing through
+            north[:, :, 1] = np.where(np.arange(K) % 2 == 0, 1.0, -1.0) * (limit + gap)
+        else:
+            north[:, :, 1] = side * (limit + gap)
+        wp[:, 1] = wp[:, 0] + north
+        ends = [np.array(team.starts), np.array(team.goals)]  # UAV 1's placed likewise
+        for e, i in zip(ends, (0, K - 1)):
+            e[1] = e[0] + north[0, i]
+        model = dataclasses.replace(team, starts=frozen(ends[0]), goals=frozen(ends[1]),
+                                    start_abs=frozen(ends[0]), goal_abs=frozen(ends[1]))
+        got = fast_evaluate(model, wp)
+        ref = evaluate(model, wp)
+        assert np.array_equal(got.violation == 0, ref.violation == 0), (side, gap)
+        assert_costs_agree(model, wp)
+        deficits[side, gap] = ref.violation[:, :2, 2]
+    for side in (1.0, -1.0):
+        assert (deficits[side, -1e-3] > 0).all() and (deficits[side, -1e-7] > 0).all()
+        assert (deficits[side, 1e-3] == 0).all() and (deficits[side, 0.5] == 0).all()
+    assert (deficits[0.0, 1.5] > 0).all() == continuous
 
 
 def test_memory_estimate_uses_the_kernels_block_size():

@@ -87,7 +87,7 @@ violations (2) to ``par`` at ``N_PAR + SOLO_STRIDE * n``. Then only the swarm-fo
 ``J_s`` terms are computed, only pairs with a player are checked, the violation is the players'
 own, and ``J`` of the other UAVs is NaN (as :meth:`SwarmProblem.evaluate`)."""
 
-PRUNE_MIN_UAVS = 4  # separation pairs are pruned by segment bounding boxes for N above this
+PRUNE_MIN_UAVS = 4  # separation pairs are pruned by boxes over a block's lanes for N above this
 PRUNE_GUARD = 1e-6  # m added to a pair's limit before a box gap counts as clear
 
 # Columns of ``uav (N, U_COLUMNS)`` (:func:`staghunt.engine.arrays.model_arrays`). Module-level
@@ -561,10 +561,9 @@ def _team_terms(nb, px, py, pz, uav, weights, heads, tails, mu, ref_diff, par, s
     ``tmp (>= S, B)``; ``acc``, ``acc2``, ``flag`` ``(B,)``. For ``N > PRUNE_MIN_UAVS`` a
     pair's segments along which its relative position stays, in every lane of the block,
     farther than its separation limit on some axis are skipped (exact; see the comment in
-    the body). With ``solo`` (a
-    problem with fixed paths), only the pairs and the collisions, ``J_f`` and ``J_n`` of
-    ``players`` (``every``: the collisions of all UAVs, from those pairs), and pairs are
-    pruned at any N.
+    the body). With ``solo`` (a problem with fixed paths), only the pairs and the
+    collisions, ``J_f`` and ``J_n`` of ``players`` (``every``: the collisions of all UAVs,
+    from those pairs), and pairs are pruned at any N.
     """
     N = px.shape[0]
     K = px.shape[1] - 2
