@@ -16,14 +16,16 @@ TOP = {"cli", "__main__", "(facade)"}
 
 LAYERS: list[set[str]] = [
     {"_version", "errors"},  # foundation: imports nothing of ours
-    {"inputs", "encoding", "task", "world"},  # reading untrusted input; the world's shapes
+    {"inputs", "encoding", "world", "camera"},  # reading untrusted input; the world's shapes; cameras
+    {"task"},  # team, formation, objectives and payloads
     {"scenario", "geo"},  # the problem as given; the site frame
-    {"costs"},
+    {"costs", "acquisition"},  # the cost model; capture plans, triggering and coverage
     {"checks", "solvers"},
     {"engine", "trajectory"},  # engines run the solvers' problems; timing of checked paths
     {"budget", "result"},
     {"io"},  # files in and out
     {"api"},  # check_plan / plan
+    {"inspection"},  # task management: objectives to allocated, planned inspections
     {"study"},  # many plans as tasks (sweep; compare runs on it)
     {"analysis"},  # certify, compare, the paper's figures
     {"flight"},  # closed loop: plans through api, reads results through analysis
