@@ -4,8 +4,10 @@ One module per group of commands: :mod:`~staghunt.cli.scenarios` (scenarios, sho
 schema), :mod:`~staghunt.cli.plan` (plan, evaluate), :mod:`~staghunt.cli.analysis` (compare,
 certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly),
 :mod:`~staghunt.cli.sweep` (sweep);
-:mod:`~staghunt.cli.common` holds what they share (exit codes, option blocks, error lines, the
-terminal status line). A command's help is its handler's docstring, its exit codes listed after
+:mod:`~staghunt.cli.common` holds what they share (the parser, option blocks), with the options'
+types in :mod:`~staghunt.cli.argtypes`, exit codes and error lines in :mod:`~staghunt.cli.wording`,
+output path checks in :mod:`~staghunt.cli.paths` and the terminal status line in
+:mod:`~staghunt.cli.status` (all re-exported by ``common``). A command's help is its handler's docstring, its exit codes listed after
 its options (:func:`~staghunt.cli.common.command`).
 
 Exit codes:

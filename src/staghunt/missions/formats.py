@@ -8,7 +8,9 @@ leg speeds ``speeds`` ``(M - 1,)`` (m/s, the average speed that keeps the common
 takeoff point ``home`` = ``(lat, lon, alt AMSL)`` of the ground under the UAV's start, with its
 ellipsoid height ``home_ell``. The altitude frame (``relative``, ``amsl``, ``terrain``) is chosen
 per export; :data:`FRAME_SUPPORT` says which formats have which, :data:`TARGET_LIMITS` the
-published limits of each target, checked by :func:`check_limits`.
+published limits of each target, checked by :func:`check_limits` (all three defined in
+:mod:`staghunt.missions.targets`; DJI WPML is written by :mod:`staghunt.missions.dji`; both
+re-exported here).
 
 - QGroundControl ``.plan`` and QGC WPL 110: ``relative`` = MAV_FRAME 3 (``AMSL = home altitude +
   value``), ``amsl`` = MAV_FRAME 0, ``terrain`` = MAV_FRAME 10 (height above the terrain under the
@@ -28,138 +30,21 @@ import csv
 import io
 import json
 import math
-import zipfile
 from typing import Any
 from xml.sax.saxutils import escape
 
 import numpy as np
 
-from staghunt.errors import FieldError
+from staghunt.missions.dji import DJI_NS, dji_kmz, dji_speeds  # noqa: F401  (re-exported: one of the formats)
+from staghunt.missions.targets import (  # noqa: F401  (re-exported: frames and limits of the targets)
+    ALTITUDE_FRAMES, DJI_HEIGHT_MODE, DJI_SPEED_RANGE, FRAME_GLOBAL, FRAME_MISSING, FRAME_RELATIVE, FRAME_SUPPORT,
+    FRAME_TERRAIN, LITCHI_ALTITUDE_MODE, LITCHI_SPEED_RANGE, MAV_FRAME, QGC_ALTITUDE_MODE, QGC_CHANGE_SPEED, QGC_LAND,
+    QGC_TAKEOFF, QGC_WAYPOINT, TARGET_LIMITS, TargetLimitError, check_frame, check_limits, frame_altitudes,
+)
 
 FORMATS = ("plan", "waypoints", "kmz", "litchi", "kml", "geojson", "trajectories")
 """``plan`` (QGroundControl), ``waypoints`` (QGC WPL 110), ``kmz`` (DJI WPML), ``litchi``
 (Litchi CSV): one file per UAV; ``kml``, ``geojson``, ``trajectories`` (CSV): one per team."""
-
-QGC_WAYPOINT = 16
-QGC_LAND = 21
-QGC_TAKEOFF = 22
-QGC_CHANGE_SPEED = 178
-FRAME_GLOBAL = 0
-FRAME_RELATIVE = 3
-FRAME_TERRAIN = 10
-ALTITUDE_FRAMES = ("relative", "amsl", "terrain")
-MAV_FRAME = {"relative": FRAME_RELATIVE, "amsl": FRAME_GLOBAL, "terrain": FRAME_TERRAIN}
-QGC_ALTITUDE_MODE = {"relative": 1, "amsl": 2, "terrain": 4}
-"""QGroundControl's ``AltitudeMode`` of a plan item (its ``AltMode`` enum: 0 mixed, 1 relative,
-2 absolute, 3 calculated above terrain (sent as absolute), 4 terrain frame)."""
-DJI_HEIGHT_MODE = {"relative": ("relativeToStartPoint", "relativeToStartPoint"), "amsl": ("EGM96", "WGS84")}
-"""``(template.kml heightMode, waylines.wpml executeHeightMode)`` per frame."""
-LITCHI_ALTITUDE_MODE = {"relative": 0, "terrain": 1}
-
-FRAME_SUPPORT: dict[str, dict[str, str]] = {
-    "plan": {"relative": "MAV_FRAME 3, AltitudeMode 1", "amsl": "MAV_FRAME 0, AltitudeMode 2",
-             "terrain": "MAV_FRAME 10, AltitudeMode 4 (takeoff item MAV_FRAME 3)"},
-    "waypoints": {"relative": "MAV_FRAME 3", "amsl": "MAV_FRAME 0",
-                  "terrain": "MAV_FRAME 10 (takeoff item MAV_FRAME 3)"},
-    "kmz": {"relative": "heightMode relativeToStartPoint, executeHeightMode relativeToStartPoint",
-            "amsl": "heightMode EGM96, executeHeightMode WGS84 (ellipsoid heights)"},
-    "litchi": {"relative": "altitudemode 0 (above the takeoff point)",
-               "terrain": "altitudemode 1 (above the ground under each waypoint)"},
-}
-"""What each per-UAV format writes for each altitude frame; a frame not listed does not exist
-in that format and is refused."""
-FRAME_MISSING = {
-    ("kmz", "terrain"): "DJI WPML has no terrain frame for waypoint routes (aboveGroundLevel is "
-                        "FlightHub 2 only, realTimeFollowSurface is for mapping templates only)",
-    ("litchi", "amsl"): "Litchi has no AMSL altitude mode (altitudemode 0 is above the takeoff "
-                        "point, 1 above ground)",
-}
-
-TARGET_LIMITS: dict[str, dict[str, Any]] = {
-    "plan": {"target": "QGroundControl, PX4", "max_items": 500,
-             "source": "PX4 dataman NUM_MISSIONS_SUPPORTED = 500 mission items on flight "
-                       "controllers (PX4-Autopilot PR 18827)"},
-    "waypoints": {"target": "ArduPilot (Mission Planner, MAVProxy)", "max_items": 700,
-                  "source": "about 700 items fit a Pixhawk's mission storage; ArduPilot "
-                            "overwrites the last item when full (ArduPilot issues 2391, 7254)"},
-    "kmz": {"target": "DJI WPML (Pilot 2, FlightHub 2)", "min_waypoints": 2, "max_waypoints": 65535,
-            "speed_m_s": (1.0, 15.0),
-            "source": "waypointSpeed 1-15 m/s (DJI WPML common elements); 2-65535 waypoints "
-                      "(DJI MSDK WaypointV2 MISSION_COUNT_TOO_FEW / OVER_RANGE)"},
-    "litchi": {"target": "Litchi (DJI SDK waypoint missions)", "min_waypoints": 2, "max_waypoints": 99,
-               "speed_m_s": (0.0, 15.0), "altitude_m": (-200.0, 500.0), "leg_m": (0.6, 1999.0),
-               "route_m": 30000.0, "max_hold_ms": 15 * 32000,
-               "source": "Litchi CSV altitude -200..500 m, speed 0..15 m/s (0 = cruise speed); "
-                         "DJI SDK: 2-99 waypoints a mission, 0.6-1999 m between waypoints, "
-                         "30 km a mission, 15 actions a waypoint, Stay For 0-32 s"},
-}
-"""The published limits of each target, one dict per per-UAV format: counts (``max_items``:
-MAVLink mission items including home; ``min_waypoints``/``max_waypoints``), ranges (``speed_m_s``,
-``altitude_m`` in the file's own frame, ``leg_m`` between consecutive waypoints) and totals
-(``route_m``). A file that breaks one is refused (:class:`TargetLimitError`); speeds below a
-DJI minimum are raised to it (the leg is flown faster, never slower than planned)."""
-DJI_SPEED_RANGE = TARGET_LIMITS["kmz"]["speed_m_s"]
-LITCHI_SPEED_RANGE = TARGET_LIMITS["litchi"]["speed_m_s"]
-
-
-class TargetLimitError(FieldError):
-    """A mission file would break a published limit of its target (``field``: ``formats``) or
-    use a frame it lacks (``altitude_frame``)."""
-
-    def __init__(self, message: str, field: str = "formats") -> None:
-        super().__init__(message, field)
-
-
-def check_frame(fmt: str, frame: str) -> None:
-    """Raise :class:`TargetLimitError` if ``fmt`` has no ``frame``."""
-    if fmt in FRAME_SUPPORT and frame not in FRAME_SUPPORT[fmt]:
-        others = ", ".join(FRAME_SUPPORT[fmt])
-        raise TargetLimitError(f"{fmt}: no altitude frame {frame}: {FRAME_MISSING[(fmt, frame)]}; "
-                               f"use {others}, or leave {fmt} out of the formats", "altitude_frame")
-
-
-def check_limits(fmt: str, file: str, *, waypoints: int, items: int | None = None,
-                 speeds: np.ndarray | None = None, altitudes: np.ndarray | None = None,
-                 legs: np.ndarray | None = None, holds_ms: np.ndarray | None = None) -> None:
-    """Raise :class:`TargetLimitError` (one line naming ``file``, the limit and the value) if the
-    file breaks one of :data:`TARGET_LIMITS` ``[fmt]``: ``waypoints`` and MAVLink ``items``
-    counts, ``speeds`` ``(L,)`` m/s as written, ``altitudes`` ``(W,)`` m in the file's frame,
-    ``legs`` ``(W - 1,)`` 3-D distances between consecutive waypoints (m), ``holds_ms`` ``(W,)``
-    Litchi ``Stay For`` time at each waypoint (ms)."""
-    lim = TARGET_LIMITS.get(fmt)
-    if lim is None:
-        return
-    target = lim["target"]
-
-    def refuse(what: str) -> None:
-        raise TargetLimitError(f"{file}: {what} ({target}); not exported")
-
-    if "max_items" in lim and items is not None and items > lim["max_items"]:
-        refuse(f"{items} mission items, at most {lim['max_items']}")
-    if "min_waypoints" in lim and waypoints < lim["min_waypoints"]:
-        refuse(f"{waypoints} waypoints, at least {lim['min_waypoints']}")
-    if "max_waypoints" in lim and waypoints > lim["max_waypoints"]:
-        refuse(f"{waypoints} waypoints, at most {lim['max_waypoints']}")
-    if "speed_m_s" in lim and speeds is not None and len(speeds):
-        lo, hi = lim["speed_m_s"]
-        if float(np.max(speeds)) > hi + 1e-9:
-            refuse(f"leg speed {float(np.max(speeds)):.2f} m/s, at most {hi:g} m/s")
-    if "altitude_m" in lim and altitudes is not None and len(altitudes):
-        lo, hi = lim["altitude_m"]
-        for v in (float(np.min(altitudes)), float(np.max(altitudes))):
-            if not lo <= v <= hi:
-                refuse(f"altitude {v:.1f} m, must lie in [{lo:g}, {hi:g}] m")
-    if "leg_m" in lim and legs is not None and len(legs):
-        lo, hi = lim["leg_m"]
-        k = int(np.argmin(legs)) if float(np.min(legs)) < lo else int(np.argmax(legs))
-        if not lo <= float(legs[k]) <= hi:
-            refuse(f"{float(legs[k]):.2f} m between waypoints {k + 1} and {k + 2}, must lie in [{lo:g}, {hi:g}] m")
-    if "max_hold_ms" in lim and holds_ms is not None and len(holds_ms) and float(np.max(holds_ms)) > lim["max_hold_ms"]:
-        refuse(f"a hold of {float(np.max(holds_ms)) / 1000:.1f} s at one waypoint, at most "
-               f"{lim['max_hold_ms'] / 1000:g} s (15 Stay For actions of 32 s)")
-    if "route_m" in lim and legs is not None and float(np.sum(legs)) > lim["route_m"]:
-        refuse(f"route {float(np.sum(legs)):.0f} m long, at most {lim['route_m']:g} m")
-
 
 LITCHI_HEADER = (
     ["latitude", "longitude", "altitude(m)", "heading(deg)", "curvesize(m)", "rotationdir",
@@ -174,18 +59,6 @@ LITCHI_HEADER = (
 def _qgc_item(seq: int, command: int, frame: int, params: list[Any]) -> dict[str, Any]:
     return {"autoContinue": True, "command": command, "doJumpId": seq, "frame": frame,
             "params": params, "type": "SimpleItem"}
-
-
-def frame_altitudes(geo: np.ndarray, home: np.ndarray, ground: np.ndarray, frame: str) -> np.ndarray:
-    """``(M,)`` the altitudes of ``geo`` ``(M, 3)`` in ``frame``: above ``home`` (``relative``),
-    AMSL (``amsl``) or above ``ground`` ``(M,)`` under each point (``terrain``)."""
-    if frame == "relative":
-        return geo[:, 2] - home[2]
-    if frame == "amsl":
-        return geo[:, 2].copy()
-    if frame == "terrain":
-        return geo[:, 2] - np.asarray(ground, dtype=float)
-    raise ValueError(f"unknown altitude frame {frame!r}; choose from {', '.join(ALTITUDE_FRAMES)}")
 
 
 def mission_items(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.ndarray,
@@ -346,93 +219,6 @@ def litchi_csv(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np
         w.writerow(row)
     return out.getvalue()
 
-
-def _dji_config(home: np.ndarray, home_ell: float, speed: float) -> str:
-    return (
-        "<wpml:missionConfig>"
-        "<wpml:flyToWaylineMode>safely</wpml:flyToWaylineMode>"
-        "<wpml:finishAction>noAction</wpml:finishAction>"
-        "<wpml:exitOnRCLost>executeLostAction</wpml:exitOnRCLost>"
-        "<wpml:executeRCLostAction>hover</wpml:executeRCLostAction>"
-        "<wpml:takeOffSecurityHeight>20</wpml:takeOffSecurityHeight>"
-        f"<wpml:takeOffRefPoint>{home[0]:.8f},{home[1]:.8f},{home_ell:.3f}</wpml:takeOffRefPoint>"
-        f"<wpml:globalTransitionalSpeed>{speed:.2f}</wpml:globalTransitionalSpeed>"
-        "<wpml:droneInfo><wpml:droneEnumValue>68</wpml:droneEnumValue>"
-        "<wpml:droneSubEnumValue>0</wpml:droneSubEnumValue></wpml:droneInfo>"
-        "</wpml:missionConfig>"
-    )
-
-
-DJI_NS = ('xmlns="http://www.opengis.net/kml/2.2" '
-          'xmlns:wpml="http://www.dji.com/wpmz/1.0.2"')
-
-
-def dji_speeds(speeds: np.ndarray) -> np.ndarray:
-    """``(M,)`` waypoint speeds as written: each leg's speed, raised to DJI's 1 m/s minimum (the
-    last waypoint repeats the last leg's); a speed above 15 m/s is left for :func:`check_limits`."""
-    return np.maximum(np.append(speeds, speeds[-1]), DJI_SPEED_RANGE[0])
-
-
-def dji_kmz(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, cruise: float, name: str,
-            ell: np.ndarray | None = None, home_ell: float | None = None, frame: str = "relative") -> bytes:
-    """DJI WPML mission (``.kmz``: ``wpmz/template.kml`` and ``wpmz/waylines.wpml``).
-
-    ``ell`` ``(M,)``: WGS84 ellipsoid heights of ``geo``, ``home_ell`` the takeoff point's: DJI
-    reads ``wpml:ellipsoidHeight`` and ``takeOffRefPoint``'s height as ellipsoid heights in every
-    mode. ``frame`` ``relative``: heights ``relativeToStartPoint``; ``amsl``: template heights
-    ``EGM96`` (AMSL), executed as ``WGS84`` ellipsoid heights. Waypoint speeds below 1 m/s are
-    raised to 1 m/s."""
-    if frame not in DJI_HEIGHT_MODE:
-        check_frame("kmz", frame)
-    if ell is None or home_ell is None:
-        raise ValueError("dji_kmz needs the WGS84 ellipsoid heights (ell, home_ell)")
-    rel = geo[:, 2] - home[2]
-    height = rel if frame == "relative" else geo[:, 2]  # wpml:height in the template's heightMode
-    execute = rel if frame == "relative" else np.asarray(ell, dtype=float)  # in executeHeightMode
-    tpl_mode, exe_mode = DJI_HEIGHT_MODE[frame]
-    spd = dji_speeds(speeds)
-    auto = float(np.clip(cruise, *DJI_SPEED_RANGE))
-    config = _dji_config(home, float(home_ell), auto)
-    tpl_marks, wl_marks = [], []
-    for k in range(len(geo)):
-        point = f"<Point><coordinates>{geo[k, 1]:.8f},{geo[k, 0]:.8f}</coordinates></Point>"
-        common = (f"<wpml:index>{k}</wpml:index>"
-                  f"<wpml:waypointSpeed>{spd[k]:.2f}</wpml:waypointSpeed>"
-                  "<wpml:waypointHeadingParam><wpml:waypointHeadingMode>followWayline"
-                  "</wpml:waypointHeadingMode></wpml:waypointHeadingParam>"
-                  "<wpml:waypointTurnParam><wpml:waypointTurnMode>toPointAndStopWithDiscontinuityCurvature"
-                  "</wpml:waypointTurnMode><wpml:waypointTurnDampingDist>0</wpml:waypointTurnDampingDist>"
-                  "</wpml:waypointTurnParam><wpml:useStraightLine>1</wpml:useStraightLine>")
-        tpl_marks.append(f"<Placemark>{point}{common}<wpml:height>{height[k]:.3f}</wpml:height>"
-                         f"<wpml:ellipsoidHeight>{ell[k]:.3f}</wpml:ellipsoidHeight>"
-                         "<wpml:useGlobalHeight>0</wpml:useGlobalHeight>"
-                         "<wpml:useGlobalSpeed>0</wpml:useGlobalSpeed></Placemark>")
-        wl_marks.append(f"<Placemark>{point}{common}<wpml:executeHeight>{execute[k]:.3f}"
-                        "</wpml:executeHeight></Placemark>")
-    template = (
-        f'<?xml version="1.0" encoding="UTF-8"?>\n<kml {DJI_NS}><Document>'
-        f"<wpml:author>staghunt</wpml:author><name>{escape(name)}</name>{config}"
-        "<Folder><wpml:templateType>waypoint</wpml:templateType><wpml:templateId>0</wpml:templateId>"
-        "<wpml:waylineCoordinateSysParam><wpml:coordinateMode>WGS84</wpml:coordinateMode>"
-        f"<wpml:heightMode>{tpl_mode}</wpml:heightMode></wpml:waylineCoordinateSysParam>"
-        f"<wpml:autoFlightSpeed>{auto:.2f}</wpml:autoFlightSpeed>"
-        "<wpml:globalWaypointTurnMode>toPointAndStopWithDiscontinuityCurvature</wpml:globalWaypointTurnMode>"
-        "<wpml:globalUseStraightLine>1</wpml:globalUseStraightLine>"
-        "<wpml:gimbalPitchMode>manual</wpml:gimbalPitchMode>"
-        f"{''.join(tpl_marks)}</Folder></Document></kml>\n"
-    )
-    waylines = (
-        f'<?xml version="1.0" encoding="UTF-8"?>\n<kml {DJI_NS}><Document>{config}'
-        "<Folder><wpml:templateId>0</wpml:templateId>"
-        f"<wpml:executeHeightMode>{exe_mode}</wpml:executeHeightMode>"
-        f"<wpml:waylineId>0</wpml:waylineId><wpml:autoFlightSpeed>{auto:.2f}</wpml:autoFlightSpeed>"
-        f"{''.join(wl_marks)}</Folder></Document></kml>\n"
-    )
-    buf = io.BytesIO()
-    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
-        z.writestr("wpmz/template.kml", template)
-        z.writestr("wpmz/waylines.wpml", waylines)
-    return buf.getvalue()
 
 
 def team_kml(geos: list[np.ndarray], names: list[str], note: str = "") -> str:

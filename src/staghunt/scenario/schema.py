@@ -16,54 +16,30 @@ what was expected. The model is the format's single source of truth: documentati
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from typing import Annotated, Any, Literal, Optional
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
-from pydantic_core import PydanticCustomError
+from pydantic import ConfigDict, Field, model_validator
 
 from staghunt.scenario.errors import fmt as _fmt
 from staghunt.scenario.model import CostParams, SolverSettings
+from staghunt.scenario.schema_base import (  # noqa: F401  (re-exported: the format's value types)
+    BaseHeight, Matrix, NonNegative, Number, Polygon, Solid, Table, TopHeight, XYH, fail,
+)
+from staghunt.scenario.schema_dynamic import (  # noqa: F401  (re-exported: part of the format)
+    EventsFile, EventTable, JibTable, MovingTable, SensingTable,
+)
 from staghunt.task import VehicleLimits
 
 __all__ = ["EventsFile", "ScenarioFile", "json_schema"]
 
 
 # --------------------------------------------------------------------------------------------
-# Value types
+# Tables (value types and the table base: staghunt.scenario.schema_base; a site that changes:
+# staghunt.scenario.schema_dynamic)
 # --------------------------------------------------------------------------------------------
 
 
-Number = float
-NonNegative = Annotated[float, Field(ge=0)]
-XYH = Annotated[list[Number], Field(min_length=3, max_length=3, description="[x, y, h], h above ground (m)")]
-Matrix = list[list[Number]]
-
-
-def _fail(key: str, detail: str) -> PydanticCustomError:
-    """A cross-field error of a table, reported at its key ``key``."""
-    return PydanticCustomError("staghunt", "{detail}", {"detail": detail, "key": key})
-
-
-class _Table(BaseModel):
-    model_config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
-
-    @model_validator(mode="before")
-    @classmethod
-    def _none_is_absent(cls, data: Any) -> Any:
-        """A known key whose value is ``None`` counts as absent (plain-data form); an unknown
-        key is still reported, whatever its value."""
-        if isinstance(data, Mapping):
-            return {k: v for k, v in data.items() if v is not None or k not in cls.model_fields}
-        return data
-
-
-# --------------------------------------------------------------------------------------------
-# Tables
-# --------------------------------------------------------------------------------------------
-
-
-class Site(_Table):
+class Site(Table):
     """The site box: x and y in metres, flight heights h in metres above ground."""
 
     xmin: Number
@@ -78,13 +54,13 @@ class Site(_Table):
         for lo, hi in (("xmin", "xmax"), ("ymin", "ymax")):
             a, b = getattr(self, lo), getattr(self, hi)
             if a >= b:
-                raise _fail(hi, f"must be greater than site.{lo} = {_fmt(a)}, got {_fmt(b)}")
+                raise fail(hi, f"must be greater than site.{lo} = {_fmt(a)}, got {_fmt(b)}")
         if self.hmin > self.hmax:
-            raise _fail("hmax", f"must be >= site.hmin = {_fmt(self.hmin)}, got {_fmt(self.hmax)}")
+            raise fail("hmax", f"must be >= site.hmin = {_fmt(self.hmin)}, got {_fmt(self.hmax)}")
         return self
 
 
-class Ground(_Table):
+class Ground(Table):
     """Flat ground (height 0), a DEM grid read from a ``.npy`` or GeoTIFF file in site
     coordinates (``dem``), or a geo-referenced GeoTIFF with its CRS resampled into the site
     frame around ``[origin]`` (``geotiff``)."""
@@ -106,19 +82,19 @@ class Ground(_Table):
         if self.kind == "flat":
             for key in type(self).model_fields:
                 if key != "kind" and key in self.model_fields_set:
-                    raise _fail(key, "only used with kind = 'dem' or 'geotiff'; flat ground takes no other key than 'kind'")
+                    raise fail(key, "only used with kind = 'dem' or 'geotiff'; flat ground takes no other key than 'kind'")
         elif self.file is None:
-            raise _fail("file", "required key is missing")
+            raise fail("file", "required key is missing")
         if self.kind == "geotiff":
             for key in ("origin", "shape", "dtype"):
                 if key in self.model_fields_set:
-                    raise _fail(key, "not used with kind = 'geotiff' (the DEM's CRS and [origin] place the grid)")
+                    raise fail(key, "not used with kind = 'geotiff' (the DEM's CRS and [origin] place the grid)")
         elif self.nodata_fill is not None:
-            raise _fail("nodata_fill", "only used with kind = 'geotiff'")
+            raise fail("nodata_fill", "only used with kind = 'geotiff'")
         return self
 
 
-class Obstacle(_Table):
+class Obstacle(Table):
     """A vertical cylinder from the ground up, centre (x, y), radius R (m)."""
 
     x: Number
@@ -127,29 +103,7 @@ class Obstacle(_Table):
     name: str = ""
 
 
-Polygon = Annotated[
-    list[Annotated[list[Number], Field(min_length=2, max_length=2)]],
-    Field(min_length=3, description="[[x, y], ...] footprint vertices in the site frame (m), not closed"),
-]
-
-
-BaseHeight = Annotated[float, Field(ge=0, description="m above ground; 0 = from the ground")]
-TopHeight = Annotated[float, Field(gt=0, description="top, m above ground")]
-
-
-class _Solid(_Table):
-    """A table of a solid from ``base`` up to ``height`` (fields of its subclass, in their own
-    order): the top must lie above the base."""
-
-    @model_validator(mode="after")
-    def _top_above_base(self) -> "_Solid":
-        base, height = self.base, self.height  # type: ignore[attr-defined]  # the subclass's fields
-        if height <= base:
-            raise _fail("height", f"must be above base = {_fmt(base)}, got {_fmt(height)}")
-        return self
-
-
-class PrismTable(_Solid):
+class PrismTable(Solid):
     """A vertical prism (building, crane tower, site cabin): a footprint polygon from ``base``
     to ``height``, both in metres above the ground (docs/model.md, "Prisms")."""
 
@@ -159,7 +113,7 @@ class PrismTable(_Solid):
     height: TopHeight
 
 
-class BoxTable(_Solid):
+class BoxTable(Solid):
     """An axis-aligned box: x in [xmin, xmax], y in [ymin, ymax], from ``base`` to ``height`` m above ground."""
 
     name: str = ""
@@ -174,18 +128,18 @@ class BoxTable(_Solid):
     def _order(self) -> "BoxTable":
         for lo, hi in (("xmin", "xmax"), ("ymin", "ymax")):
             if getattr(self, lo) >= getattr(self, hi):
-                raise _fail(hi, f"must be greater than {lo} = {_fmt(getattr(self, lo))}, got {_fmt(getattr(self, hi))}")
+                raise fail(hi, f"must be greater than {lo} = {_fmt(getattr(self, lo))}, got {_fmt(getattr(self, hi))}")
         return self
 
 
-class NoFlyTable(_Table):
+class NoFlyTable(Table):
     """A no-fly zone: a polygon forbidden at every height."""
 
     name: str = ""
     polygon: Polygon
 
 
-class GeoJsonTable(_Table):
+class GeoJsonTable(Table):
     """Obstacles from a GeoJSON file (lon/lat, WGS84), converted around ``[origin]``: Polygon and
     MultiPolygon features with a ``height`` (and optional ``base``) property become prisms
     (or no-fly zones with ``nofly = true``), Points with a ``radius`` become cylinders."""
@@ -194,14 +148,14 @@ class GeoJsonTable(_Table):
     nofly: bool = Field(False, description="every polygon of the file is a no-fly zone")
 
 
-class Airspace(_Table):
+class Airspace(Table):
     """Limits of the airspace."""
 
     ceiling: Optional[Number] = Field(None, description="altitude ceiling: absolute z in the site frame "
         "(m above the origin's altitude)")
 
 
-class Fleet(_Table):
+class Fleet(Table):
     """A team generated from a formation template (replaces [[team]])."""
 
     count: Annotated[int, Field(ge=1, le=64)]
@@ -223,13 +177,13 @@ class Fleet(_Table):
         for one, many in (("start", "starts"), ("goal", "goals")):
             a, b = getattr(self, one), getattr(self, many)
             if (a is None) == (b is None):
-                raise _fail(one, f"give exactly one of {one} (the team's) and {many} (one per UAV)")
+                raise fail(one, f"give exactly one of {one} (the team's) and {many} (one per UAV)")
             if b is not None and len(b) != self.count:
-                raise _fail(many, f"must hold count = {self.count} points, got {len(b)}")
+                raise fail(many, f"must hold count = {self.count} points, got {len(b)}")
         return self
 
 
-class Uav(_Table):
+class Uav(Table):
     """One UAV of the team."""
 
     name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="default UAV<i> (1-based)")
@@ -243,11 +197,11 @@ class Uav(_Table):
     @model_validator(mode="after")
     def _two_ends(self) -> "Uav":
         if self.start == self.goal:
-            raise _fail("goal", f"equals the start {tuple(self.start)}; a path needs two ends")
+            raise fail("goal", f"equals the start {tuple(self.start)}; a path needs two ends")
         return self
 
 
-class FormationTable(_Table):
+class FormationTable(Table):
     """The formation graph: signed incidence matrix (N x M), edge weights (N x M), reference."""
 
     incidence: Matrix
@@ -255,7 +209,7 @@ class FormationTable(_Table):
     reference: Optional[Matrix] = Field(None, description="N x 3 absolute [x, y, z]; default: the goals")
 
 
-class Costs(_Table):
+class Costs(Table):
     """Parameters of the cost terms (docs/model.md section 2)."""
 
     danger_margin: NonNegative = CostParams.danger_margin
@@ -268,7 +222,7 @@ class Costs(_Table):
     min_clearance: NonNegative = CostParams.min_clearance
 
 
-class Solver(_Table):
+class Solver(Table):
     """Swarm settings (the budget options of ``staghunt plan`` override the first three)."""
 
     particles: Annotated[int, Field(ge=1)] = SolverSettings.particles
@@ -283,7 +237,7 @@ class Solver(_Table):
         SolverSettings.starts)
 
 
-class Origin(_Table):
+class Origin(Table):
     """Geodetic origin of the site frame (WGS84)."""
 
     latitude: Annotated[float, Field(ge=-90, le=90, description="degrees")]
@@ -291,7 +245,7 @@ class Origin(_Table):
     altitude: Annotated[float, Field(ge=-500, le=10000, description="m above mean sea level")]
 
 
-class Vehicle(_Table):
+class Vehicle(Table):
     """Flight limits of the team's vehicles."""
 
     max_speed: Annotated[float, Field(gt=0, description="m/s")] = VehicleLimits.max_speed
@@ -301,117 +255,15 @@ class Vehicle(_Table):
     @model_validator(mode="after")
     def _cruise(self) -> "Vehicle":
         if self.cruise_speed > self.max_speed:
-            raise _fail("cruise_speed", f"must not exceed vehicle.max_speed ({_fmt(self.max_speed)} m/s), "
+            raise fail("cruise_speed", f"must not exceed vehicle.max_speed ({_fmt(self.max_speed)} m/s), "
                         f"got {_fmt(self.cruise_speed)}")
         return self
 
 
 
-# --------------------------------------------------------------------------------------------
-# A site that changes (docs/scenario-format.md, "A site that changes"; used by `staghunt fly`)
-# --------------------------------------------------------------------------------------------
-
-Seconds = Annotated[float, Field(ge=0, description="s after take-off")]
-XY = Annotated[list[Number], Field(min_length=2, max_length=2, description="[x, y] in the site frame (m)")]
-RepeatKind = Literal["stop", "reverse"]
 
 
-class MovingTable(_Table):
-    """A cylinder with a known motion (a truck, a load on a hook): infinitely tall like the
-    static obstacles, its axis moving along ``path`` at ``speed`` from ``start_time`` on."""
-
-    name: Annotated[str, Field(pattern=r"\S")]
-    radius: Annotated[float, Field(gt=0, description="m")]
-    path: Annotated[list[XY], Field(min_length=2, description="[[x, y], ...] polyline of the axis (m)")]
-    speed: Annotated[float, Field(gt=0, description="m/s along the path")]
-    start_time: Seconds = 0.0
-    repeat: RepeatKind = Field("stop", description="at the end: 'stop' there, or run the path back and forth ('reverse')")
-
-
-class JibTable(_Solid):
-    """A crane jib that slews: a box ``length`` m ahead of the pivot (plus ``counter`` behind),
-    ``width`` m wide, from ``base`` to ``height`` m above the ground at the pivot, turning from
-    ``angle_from`` to ``angle_to`` (degrees counter-clockwise from east) at ``rate`` deg/s."""
-
-    name: Annotated[str, Field(pattern=r"\S")]
-    pivot: XY
-    length: Annotated[float, Field(gt=0, description="m from the pivot to the tip")]
-    counter: Annotated[float, Field(ge=0, description="m of counter-jib behind the pivot")] = 0.0
-    width: Annotated[float, Field(gt=0, description="m")]
-    base: Annotated[float, Field(ge=0, description="m above the ground at the pivot")]
-    height: Annotated[float, Field(gt=0, description="top, m above the ground at the pivot")]
-    angle_from: Annotated[float, Field(ge=-360, le=360, description="degrees, counter-clockwise from east")]
-    angle_to: Annotated[float, Field(ge=-360, le=360, description="degrees")]
-    rate: Annotated[float, Field(gt=0, le=90, description="deg/s")]
-    start_time: Seconds = 0.0
-    repeat: RepeatKind = "stop"
-
-
-class EventTable(_Table):
-    """A change at ``time``: ``appear`` (a cylinder ``x``, ``y``, ``radius`` through the whole
-    height band, or a ``polygon``, a no-fly zone unless ``height`` makes it a prism from
-    ``base``), unknown to the plan until a UAV senses it; ``disappear`` (the obstacle ``name``)."""
-
-    time: Seconds
-    kind: Literal["appear", "disappear"]
-    name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="appear: default 'pop-up <i>'; "
-        "disappear: required")
-    x: Optional[Number] = None
-    y: Optional[Number] = None
-    radius: Optional[Annotated[float, Field(gt=0, description="m")]] = None
-    polygon: Optional[Polygon] = None
-    base: Optional[Annotated[float, Field(ge=0, description="m above ground (polygon)")]] = None
-    height: Optional[Annotated[float, Field(gt=0, description="top, m above ground (polygon); absent: a no-fly zone")]] = None
-
-    @model_validator(mode="after")
-    def _shape(self) -> "EventTable":
-        given = {k for k in ("x", "y", "radius", "polygon", "base", "height") if getattr(self, k) is not None}
-        if self.kind == "disappear":
-            if self.name is None:
-                raise _fail("name", "required key is missing (the obstacle that disappears)")
-            if given:
-                raise _fail(sorted(given)[0], "not used with kind = 'disappear'")
-            return self
-        circle = {"x", "y", "radius"}
-        if self.polygon is None:
-            missing = sorted(circle - given)
-            if missing:
-                raise _fail(missing[0], "required key is missing (or give a polygon)")
-            if given & {"base", "height"}:
-                raise _fail(sorted(given & {"base", "height"})[0], "only used with a polygon")
-        else:
-            if given & circle:
-                raise _fail(sorted(given & circle)[0], "give either x, y and radius or a polygon, not both")
-            if self.base is not None and self.height is None:
-                raise _fail("height", "required with base")
-            if self.height is not None and self.height <= (self.base or 0.0):
-                raise _fail("height", f"must be above base = {_fmt(self.base or 0.0)}, got {_fmt(self.height)}")
-        return self
-
-
-class SensingTable(_Table):
-    """What the planner learns in flight."""
-
-    range: Annotated[float, Field(gt=0, description="m: an appeared obstacle is sensed once a UAV "
-        "is this close (horizontally)")] = 40.0
-    rate: Annotated[float, Field(ge=10, le=100, description="Hz: state feedback and planner ticks")] = 10.0
-    position_noise: Annotated[float, Field(ge=0, le=10, description="m, standard deviation of the fed-back positions")] = 0.0
-    velocity_noise: Annotated[float, Field(ge=0, le=10, description="m/s, standard deviation of the fed-back velocities")] = 0.0
-
-
-class EventsFile(_Table):
-    """An events file (``staghunt fly --events FILE``): what changes in flight, added to the
-    scenario's own (its [sensing] replaces the scenario's)."""
-
-    model_config = ConfigDict(title="staghunt events")
-
-    events: list[EventTable] = []
-    moving: list[MovingTable] = []
-    jibs: list[JibTable] = []
-    sensing: Optional[SensingTable] = None
-
-
-class ScenarioFile(_Table):
+class ScenarioFile(Table):
     """A staghunt scenario (TOML): site, ground, obstacles, team, formation, costs, solver."""
 
     model_config = ConfigDict(title="staghunt scenario")
@@ -441,13 +293,13 @@ class ScenarioFile(_Table):
     @model_validator(mode="after")
     def _team_or_fleet(self) -> "ScenarioFile":
         if self.team is None and self.fleet is None:
-            raise _fail("team", "required key is missing (or give a [fleet])")
+            raise fail("team", "required key is missing (or give a [fleet])")
         if self.team is not None and self.fleet is not None:
-            raise _fail("fleet", "give either [[team]] entries or a [fleet], not both")
+            raise fail("fleet", "give either [[team]] entries or a [fleet], not both")
         return self
 
 
-def json_schema(model: type[_Table] | None = None) -> dict[str, Any]:
+def json_schema(model: type[Table] | None = None) -> dict[str, Any]:
     """The JSON Schema (draft 2020-12) of the scenario format (or of ``EventsFile``)."""
     model = model or ScenarioFile
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", **model.model_json_schema()}
