@@ -1,8 +1,9 @@
 """Facades: the walls of a prism photographed level, in layers, from the standoff that gives
 the target GSD (a QGroundControl Structure Scan, for any footprint, with the site's obstacles).
 
-- The camera flies a loop around the prism's footprint at the standoff ``d`` (the footprint
-  grown by ``d``, round at convex corners) and always faces the nearest point of the walls.
+- The camera flies around the prism's footprint at the standoff ``d`` (the footprint grown by
+  ``d`` with mitred corners), one run per wall, facing the wall square on; at an inner corner
+  both runs go on past the corner so that the corner's walls are photographed to their ends.
 - Layers: the image's vertical footprint ``V`` and the side overlap set the layer spacing
   ``V (1 - side overlap)``; the layers span the walls from the lowest ground along them to the
   prism's top. Where the lowest layer cannot fly low enough (the site's minimum height above
@@ -38,17 +39,17 @@ STEP_M = 1.0
 """Distance between the planned points of a layer."""
 
 
-def _loop(poly: Polygon, standoff: float, reach: float) -> list[tuple[np.ndarray, np.ndarray, bool]]:
+def _loop(poly: Polygon, standoff: float, reach: float) -> list[tuple[np.ndarray, np.ndarray]]:
     """The loop at ``standoff`` around ``poly`` (its footprint grown with mitred corners,
-    counter-clockwise; a corner sharper than the mitre limit is bevelled) as runs of points at
-    most ``STEP_M`` apart: ``[(points (M, 2), look (M, 2), closed), ...]``, ``look`` the point of
-    the walls each position faces: straight ahead, perpendicular to the loop's edge it is on, so
-    that each wall is seen face on and its GSD is the same over the whole photo.
+    counter-clockwise; a corner sharper than the mitre limit is bevelled), one run per edge, as
+    points at most ``STEP_M`` apart: ``[(points (M, 2), look (M, 2)), ...]``, ``look`` the point
+    of the walls each position faces: straight ahead, perpendicular to the edge, so that each
+    wall is seen face on and its GSD is the same over the whole photo. One run per wall lets the
+    task layer share a building's walls among UAVs; one UAV flying them in turn loses nothing.
 
-    Without an inner (reflex) corner the loop is one closed run. At an inner corner each of the
-    two edges runs on past the corner by ``reach`` (half the horizontal footprint), still facing
-    its own wall, so that the walls' ends in the corner are photographed too; the loop is cut
-    there into open runs, which the UAV joins in transit (no photo on the hop)."""
+    At an inner (reflex) corner each of the two edges runs on past the corner by ``reach`` (half
+    the horizontal footprint), still facing its own wall, so that the walls' ends in the corner
+    are photographed too."""
     ring = poly.buffer(standoff, join_style="mitre", mitre_limit=2.0).exterior
     xy = np.asarray(ring.coords)[:-1]
     if not ring.is_ccw:
@@ -58,26 +59,17 @@ def _loop(poly: Polygon, standoff: float, reach: float) -> list[tuple[np.ndarray
     unit = [(b - a) / max(float(np.hypot(*(b - a))), 1e-12) for a, b in edges]
     # a clockwise turn at vertex k (between edge k-1 and edge k) is an inner corner
     reflex = [float(np.cross(unit[k - 1], unit[k])) < -1e-9 for k in range(V)]
-    first = next((k for k in range(V) if reflex[k]), 0)  # start the walk at an inner corner
-    runs: list[tuple[list, list]] = [([], [])]
-    for j in range(V):
-        k = (first + j) % V
-        a, b = edges[k]
+    runs = []
+    for k, (a, b) in enumerate(edges):
         e = unit[k]
         if float(np.hypot(*(b - a))) < 1e-9:
             continue
-        if reflex[k] and runs[-1][0]:
-            runs.append(([], []))
         a2 = a - reach * e if reflex[k] else a
         b2 = b + reach * e if reflex[(k + 1) % V] else b
         n = max(1, math.ceil(float(np.hypot(*(b2 - a2))) / STEP_M))
-        inward = np.array([-e[1], e[0]])  # left of a counter-clockwise ring
-        for t in np.arange(n + 1 if reflex[(k + 1) % V] else n) / n:
-            p = a2 + t * (b2 - a2)
-            runs[-1][0].append(p)
-            runs[-1][1].append(p + standoff * inward)
-    closed = not any(reflex)
-    return [(np.array(p), np.array(q), closed) for p, q in runs if len(p) >= 2]
+        pts = a2 + (np.arange(n + 1) / n)[:, None] * (b2 - a2)
+        runs.append((pts, pts + standoff * np.array([-e[1], e[0]])))  # inward: left of a counter-clockwise ring
+    return runs
 
 
 def plan_facade(obj: FacadeObjective, camera: Camera, payload: Payload, keep: Keepout, cruise_speed: float,
@@ -108,8 +100,8 @@ def plan_facade(obj: FacadeObjective, camera: Camera, payload: Payload, keep: Ke
     moved: list[str] = []
     unreached: list[str] = []
     for k, zc in enumerate(heights):
-        for loop_xy, near, closed in _loop(poly, distance, 0.5 * horizontal):
-            segs, m, u = layer.run(k, len(heights), zc, loop_xy, near, closed, len(segments))
+        for loop_xy, near in _loop(poly, distance, 0.5 * horizontal):
+            segs, m, u = layer.run(k, len(heights), zc, loop_xy, near, len(segments))
             segments.extend(segs)
             moved.extend(m)
             unreached.extend(u)
@@ -136,7 +128,7 @@ class _Layer:
     gsd: float
     name: str
 
-    def run(self, k: int, layers: int, zc: float, loop_xy: np.ndarray, near: np.ndarray, closed: bool, first: int
+    def run(self, k: int, layers: int, zc: float, loop_xy: np.ndarray, near: np.ndarray, first: int
             ) -> tuple[list[CaptureSegment], list[str], list[str]]:
         """The capture segments of one run of layer ``k`` (of ``layers``) at height ``zc``, and
         the notes of what was moved and what cannot be reached."""
@@ -174,14 +166,12 @@ class _Layer:
         if pulled:
             moved.append(f"layer {k + 1}: {pulled} positions pulled towards the wall to stay clear of obstacles")
         yaw = np.arctan2(near[:, 1] - pts[:, 1], near[:, 0] - pts[:, 0])
-        if closed:
-            pts, yaw, pitch, ok = (np.concatenate([a, a[:1]]) for a in (pts, yaw, pitch, ok))
         seg_ok = keep.segment_ok(pts) & ok[:-1] & ok[1:]
         if not seg_ok.all():
             lost = float(np.sum(np.linalg.norm(np.diff(pts, axis=0), axis=1)[~seg_ok]))
             bad = int(np.flatnonzero(~ok)[0]) if (~ok).any() else int(np.flatnonzero(~seg_ok)[0])
             why = keep.why(pts[bad]) or "a stretch passes too near an obstacle"
-            unreached.append(f"layer {k + 1}: {lost:.1f} m of the loop cannot be flown safely ({why})")
+            unreached.append(f"layer {k + 1}: {lost:.1f} m along a wall cannot be flown safely ({why})")
         segments = []
         for r0, r1 in _runs(seg_ok):
             chunk = pts[r0:r1 + 2]

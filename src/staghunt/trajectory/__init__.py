@@ -184,13 +184,20 @@ class SafetyReport:
 
 
 def check_in_time(model: CostModel, traj: Trajectories, names: list[str], step: float = SAMPLE_S) -> SafetyReport:
-    """Separation, clearance and height of the trajectories sampled every ``<= step`` seconds.
+    """Separation, clearance and height of the trajectories sampled every ``<= step`` seconds
+    (:func:`check_positions`)."""
+    t = traj.grid(step)
+    pos, _ = traj.sample(t)  # (N, T, 3)
+    return check_positions(model, pos, names, float(t[1] - t[0]) if len(t) > 1 else 0.0)
+
+
+def check_positions(model: CostModel, pos: np.ndarray, names: list[str], step: float) -> SafetyReport:
+    """Separation, clearance and height of every UAV's positions ``pos`` ``(N, T, 3)`` (absolute)
+    sampled at the same ``T`` instants, ``step`` seconds apart.
 
     The samples become a dense "plan" whose synchronised points are the instants, so the
     project's own checks (:func:`staghunt.checks.plan_metrics`, :func:`violations`) judge them:
     separation at the same instant, obstacles along the short segments between samples."""
-    t = traj.grid(step)
-    pos, _ = traj.sample(t)  # (N, T, 3)
     free = pos[:, 1:-1].copy()
     free[..., 2] = pos[:, 1:-1, 2] - model.terrain.height(free[..., 0], free[..., 1])
     if free.shape[1] == 0:
@@ -202,7 +209,7 @@ def check_in_time(model: CostModel, traj: Trajectories, names: list[str], step: 
     problems = [f"in time: {v}" for v in violations(model, free, names)]
     notes = outside_site(model, free, names)
     return SafetyReport(
-        times=len(t), step=float(t[1] - t[0]) if len(t) > 1 else 0.0,
+        times=pos.shape[1], step=step,
         min_separation=tuple(float(v) for v in m.min_separation_waypoints),
         separation_limit=tuple(float(v) for v in m.separation_limit),
         min_clearance=tuple(float(v) for v in m.min_clearance),

@@ -1,0 +1,439 @@
+"""Allocation, the task management layer's decision: which UAV flies which tasks, in which order
+and which way, so that the last UAV is done as early as possible (the makespan), within each
+UAV's endurance and every task's time window.
+
+Two solvers share one model (:class:`Problem`) and one route timing (:func:`time_routes`):
+
+- :func:`solve_ortools`: OR-Tools' vehicle routing (a time dimension with each UAV's endurance
+  as its capacity, the windows as cumuls' ranges, waiting allowed; each task's ways are a
+  disjunction of which exactly one is flown, optional objectives at a penalty; the makespan
+  minimised through the dimension's global span), first solution by cheapest insertion,
+  improved by guided local search for a fixed number of solutions (reproducible) within a time
+  cap;
+- :func:`greedy`: the baseline, cheapest insertion: tasks by window then longest first, each
+  inserted where it raises the makespan least.
+
+:func:`lower_bound`: no allocation can end earlier (module docstring of :func:`lower_bound`).
+Times are in seconds after take-off; transit between tasks is the straight line at the UAV's
+transit speed plus ``stop_s`` per task (to slow down and speed up), a lower bound of the legs
+the game then plans round the obstacles.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from staghunt.inspection.tasks import Fleet, Task, window_of
+
+__all__ = ["Allocation", "Problem", "Route", "Visit", "greedy", "lower_bound", "solve", "solve_ortools", "time_routes"]
+
+TICK = 0.1
+"""OR-Tools' time unit (s)."""
+
+
+@dataclass(frozen=True)
+class Visit:
+    """Task ``task`` flown its way ``way``, from ``start`` to ``end`` (s)."""
+
+    task: int
+    way: int
+    start: float
+    end: float
+
+
+@dataclass(frozen=True)
+class Route:
+    """UAV ``uav``'s visits in order, when it is done (at its goal, s) and how its time splits
+    into capture work, transit and waiting for windows."""
+
+    uav: int
+    visits: tuple[Visit, ...]
+    end: float
+    work: float
+    transit: float
+    wait: float
+
+
+@dataclass(frozen=True)
+class Problem:
+    """Tasks for a fleet; ``stop_s``: time lost slowing down into and speeding up out of a task;
+    ``slack``: the planned transit time over the straight line's at the transit speed (the legs
+    go round obstacles, speed up and slow down; the lower bound takes the straight line)."""
+
+    tasks: tuple[Task, ...]
+    fleet: Fleet
+    stop_s: float = 2.0
+    slack: float = 1.0
+
+    def service(self, t: Task) -> float:
+        return t.duration + self.stop_s
+
+    def travel(self, k: int, a: np.ndarray, b: np.ndarray) -> float:
+        return self.slack * self.fleet.travel(k, a, b)
+
+
+@dataclass(frozen=True, eq=False)
+class Allocation:
+    """Who flies what. ``status``: ``"allocated"`` every required task has a UAV (optional ones
+    may be in ``dropped``); ``"infeasible"``: no allocation meets the endurances and windows,
+    ``message`` says what is missing. ``makespan``: the last UAV's end (s); ``lower_bound``:
+    no allocation ends before it."""
+
+    method: str
+    status: str
+    message: str
+    routes: tuple[Route, ...]
+    makespan: float
+    lower_bound: float
+    dropped: tuple[int, ...] = ()
+    solve_time_s: float = 0.0
+    details: dict = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "allocated"
+
+    def tasks_of(self, uav: int) -> list[tuple[int, int]]:
+        """``[(task, way), ...]`` of UAV ``uav`` in flying order."""
+        return [(v.task, v.way) for r in self.routes if r.uav == uav for v in r.visits]
+
+
+def time_routes(problem: Problem, plan: list[list[tuple[int, int]]]) -> tuple[list[Route], list[str]]:
+    """Time each UAV's ``[(task, way), ...]``: leave when ready, transit, wait for a window if
+    early; returns the routes and the broken constraints in words (empty if none)."""
+    fleet, tasks = problem.fleet, problem.tasks
+    routes, broken = [], []
+    for k, visits in enumerate(plan):
+        t = float(fleet.ready[k])
+        pos = fleet.starts[k]
+        work = transit = wait = 0.0
+        out = []
+        for ti, wi in visits:
+            task = tasks[ti]
+            way = task.ways[wi]
+            leg = problem.travel(k, pos, way.entry)
+            t += leg
+            transit += leg
+            lo, hi = window_of(task)
+            if t < lo:
+                wait += lo - t
+                t = lo
+            if t > hi + 1e-6:
+                broken.append(f"{fleet.names[k]} reaches task {ti} ({task.objective}) at {t:.0f} s, after its window")
+            start = t
+            t += problem.service(task)
+            work += problem.service(task)
+            out.append(Visit(ti, wi, start, t))
+            pos = way.exit
+        leg = problem.travel(k, pos, fleet.goals[k])
+        t += leg
+        transit += leg
+        used = t - float(fleet.ready[k])
+        if used > fleet.endurance[k] + 1e-6:
+            broken.append(f"{fleet.names[k]} needs {used:.0f} s of flight, its endurance is {fleet.endurance[k]:.0f} s")
+        routes.append(Route(k, tuple(out), t, work, transit, wait))
+    return routes, broken
+
+
+def lower_bound(problem: Problem) -> float:
+    """No allocation ends earlier than the largest of:
+
+    - each UAV's own trip from its start to its goal;
+    - for each required task, the fastest capable UAV's trip start -> task -> goal (waiting for
+      its window);
+    - the work shared evenly plus the least transit: the UAV with the most work has at least the
+      required work over the number of active UAVs, and it must fly out to its first task and
+      back from its last: at least the shortest such trip of any UAV to any task.
+
+    Transit is the straight line at the transit speed and a task takes its length at its speed:
+    no slowing down, no detour, no stop, no transit between tasks; so it is a bound the planned
+    mission cannot beat."""
+    fleet, tasks = problem.fleet, problem.tasks
+    active = [k for k in range(fleet.n) if fleet.active[k]]
+    if not active:
+        return math.inf
+    best = max(float(fleet.ready[k]) + fleet.travel(k, fleet.starts[k], fleet.goals[k]) for k in active)
+    required = [t for t in tasks if t.required]
+    if not required:
+        return best
+    out_back = math.inf
+    for t in required:
+        lo, _ = window_of(t)
+        one = math.inf
+        for k in t.uavs:
+            if not fleet.active[k]:
+                continue
+            for w in t.ways:
+                go, back = fleet.travel(k, fleet.starts[k], w.entry), fleet.travel(k, w.exit, fleet.goals[k])
+                out_back = min(out_back, float(fleet.ready[k]) + go + back)
+                one = min(one, max(float(fleet.ready[k]) + go, lo) + t.duration + back)
+        best = max(best, one)
+    work = sum(t.duration for t in required)
+    return max(best, work / len(active) + out_back)
+
+
+def _result(problem: Problem, method: str, plan: list[list[tuple[int, int]]], dropped: list[int], started: float,
+            details: dict | None = None) -> Allocation:
+    routes, broken = time_routes(problem, plan)
+    lb = lower_bound(problem)
+    makespan = max(r.end for r in routes) if routes else 0.0
+    missing = [i for i in dropped if problem.tasks[i].required]
+    if broken or missing:
+        what = broken[:2] + [f"task {i} ({problem.tasks[i].objective}) has no UAV" for i in missing[:2]]
+        return Allocation(method, "infeasible", "; ".join(what), tuple(routes), makespan, lb, tuple(dropped),
+                          time.perf_counter() - started, details or {})
+    return Allocation(method, "allocated", f"makespan {makespan:.0f} s (lower bound {lb:.0f} s)", tuple(routes),
+                      makespan, lb, tuple(dropped), time.perf_counter() - started, details or {})
+
+
+def _route_end(problem: Problem, k: int, visits: list[tuple[int, int]]) -> tuple[float, bool]:
+    """End time of UAV ``k`` flying ``visits`` and whether it meets its endurance and windows."""
+    fleet, tasks = problem.fleet, problem.tasks
+    t = float(fleet.ready[k])
+    pos = fleet.starts[k]
+    for ti, wi in visits:
+        way = tasks[ti].ways[wi]
+        t += problem.travel(k, pos, way.entry)
+        lo, hi = window_of(tasks[ti])
+        if t > hi + 1e-6:
+            return t, False
+        t = max(t, lo) + problem.service(tasks[ti])
+        pos = way.exit
+    t += problem.travel(k, pos, fleet.goals[k])
+    return t, t - float(fleet.ready[k]) <= fleet.endurance[k] + 1e-6
+
+
+def greedy(problem: Problem) -> Allocation:
+    """Cheapest insertion for the makespan: tasks with a window first (earliest first), then the
+    longest first; each goes to the UAV, position and way that raise the makespan least (ties:
+    the smallest increase of that UAV's end). A task no UAV can take is dropped."""
+    started = time.perf_counter()
+    fleet, tasks = problem.fleet, problem.tasks
+    order = sorted(range(len(tasks)), key=lambda i: (tasks[i].window is None, window_of(tasks[i])[0],
+                                                     -tasks[i].duration, i))
+    plan: list[list[tuple[int, int]]] = [[] for _ in range(fleet.n)]
+    ends = [(_route_end(problem, k, []) if fleet.active[k] else (0.0, True))[0] for k in range(fleet.n)]
+    dropped: list[int] = []
+    for ti in order:
+        best = None
+        for k in tasks[ti].uavs:
+            if not fleet.active[k]:
+                continue
+            for pos in range(len(plan[k]) + 1):
+                for wi in range(len(tasks[ti].ways)):
+                    trial = plan[k][:pos] + [(ti, wi)] + plan[k][pos:]
+                    end, ok = _route_end(problem, k, trial)
+                    if not ok:
+                        continue
+                    span = max([end] + [e for j, e in enumerate(ends) if j != k])
+                    key = (span, end - ends[k], k, pos, wi)
+                    if best is None or key < best[0]:
+                        best = (key, k, trial, end)
+        if best is None:
+            dropped.append(ti)
+            continue
+        _, k, trial, end = best
+        plan[k] = trial
+        ends[k] = end
+    return _result(problem, "greedy", plan, dropped, started)
+
+
+@dataclass
+class _Model:
+    """An OR-Tools routing model of a problem (nodes: each active UAV's start and end, then one
+    node per task way) and how to read a solution back."""
+
+    routing: object
+    manager: object
+    dim: object
+    node_of: dict
+    active: list
+
+
+def _model(problem: Problem, bound_s: float | None, span: bool):
+    from ortools.constraint_solver import pywrapcp
+
+    fleet, tasks = problem.fleet, problem.tasks
+    active = [k for k in range(fleet.n) if fleet.active[k]]
+    N = len(active)
+    points: list[tuple[np.ndarray, np.ndarray]] = [(fleet.starts[k], fleet.starts[k]) for k in active]
+    points += [(fleet.goals[k], fleet.goals[k]) for k in active]
+    service = [0.0] * (2 * N)
+    node_of: dict[tuple[int, int], int] = {}
+    for t in tasks:
+        for wi, w in enumerate(t.ways):
+            node_of[(t.index, wi)] = len(points)
+            points.append((w.entry, w.exit))
+            service.append(problem.service(t))
+    manager = pywrapcp.RoutingIndexManager(len(points), N, list(range(N)), list(range(N, 2 * N)))
+    routing = pywrapcp.RoutingModel(manager)
+    exits = np.array([p[1] for p in points])
+    entries = np.array([p[0] for p in points])
+    dist = np.linalg.norm(exits[:, None, :] - entries[None, :, :], axis=-1)
+    callbacks = []
+    for v, k in enumerate(active):
+        ticks = np.rint((problem.slack * dist / float(fleet.speed[k]) + np.array(service)[:, None]) / TICK).astype(np.int64)
+
+        def transit(i: int, j: int, m: np.ndarray = ticks) -> int:
+            return int(m[manager.IndexToNode(i), manager.IndexToNode(j)])
+
+        callbacks.append(routing.RegisterTransitCallback(transit))
+        routing.SetArcCostEvaluatorOfVehicle(callbacks[-1], v)
+    ends = [float(fleet.ready[k] + fleet.endurance[k]) for k in active]
+    horizon = int(math.ceil((max(ends) if np.isfinite(ends).all() else 1e6) / TICK)) + 1
+    routing.AddDimensionWithVehicleTransitAndCapacity(callbacks, horizon, [horizon] * N, False, "time")
+    dim = routing.GetDimensionOrDie("time")
+    if span:
+        dim.SetGlobalSpanCostCoefficient(100)
+    for v, k in enumerate(active):
+        ready = int(round(float(fleet.ready[k]) / TICK))
+        dim.CumulVar(routing.Start(v)).SetRange(ready, ready)
+        last = ready + int(math.floor(float(fleet.endurance[k]) / TICK)) if np.isfinite(fleet.endurance[k]) else horizon
+        if bound_s is not None:
+            last = min(last, int(math.floor(bound_s / TICK)))
+        dim.CumulVar(routing.End(v)).SetMax(last)
+    for t in tasks:
+        idx = [manager.NodeToIndex(node_of[(t.index, wi)]) for wi in range(len(t.ways))]
+        allowed = [v for v, k in enumerate(active) if k in t.uavs]
+        for i in idx:
+            if len(allowed) < N:  # (SetAllowedVehiclesForIndex's Python binding rejects lists in OR-Tools 9.15)
+                routing.VehicleVar(i).SetValues([-1] + allowed)
+            if t.window is not None:
+                lo, hi = window_of(t)
+                dim.CumulVar(i).SetRange(int(math.ceil(lo / TICK)), max(int(math.floor(hi / TICK)), int(math.ceil(lo / TICK))))
+        # every task may be left out at a penalty (far above any makespan for a required one), so
+        # that a tight bound still has solutions for the local search to improve; a plan that
+        # leaves a required task out is refused by the caller
+        weight = int(1e9) if t.required else int(1e7) * max(1, t.priority)
+        routing.AddDisjunction(idx, weight + int(t.duration / TICK))
+    return _Model(routing, manager, dim, node_of, active)
+
+
+def _run(model: _Model, problem: Problem, solutions: int, time_cap_s: float, start: list[list[tuple[int, int]]] | None
+         ) -> list[list[tuple[int, int]]] | None:
+    """Solve ``model`` (cheapest insertion, then guided local search for ``solutions``
+    solutions within ``time_cap_s``), from ``start`` when it fits; the plan, or ``None``."""
+    from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+
+    routing, manager = model.routing, model.manager
+    params = pywrapcp.DefaultRoutingSearchParameters()
+    params.first_solution_strategy = routing_enums_pb2.FirstSolutionStrategy.PARALLEL_CHEAPEST_INSERTION
+    params.local_search_metaheuristic = routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH
+    params.solution_limit = int(solutions)
+    params.time_limit.FromMilliseconds(int(time_cap_s * 1000))
+    solution = None
+    if start is not None:
+        routing.CloseModelWithParameters(params)
+        first = routing.ReadAssignmentFromRoutes(
+            [[manager.NodeToIndex(model.node_of[tw]) for tw in start[k]] for k in model.active], True)
+        if first is not None:
+            solution = routing.SolveFromAssignmentWithParameters(first, params)
+    if solution is None:
+        solution = routing.SolveWithParameters(params)
+    if solution is None:
+        return None
+    inverse = {n: key for key, n in model.node_of.items()}
+    plan: list[list[tuple[int, int]]] = [[] for _ in range(problem.fleet.n)]
+    for v, k in enumerate(model.active):
+        i = routing.Start(v)
+        while not routing.IsEnd(i):
+            node = manager.IndexToNode(i)
+            if node in inverse:
+                plan[k].append(inverse[node])
+            i = solution.Value(routing.NextVar(i))
+    return plan
+
+
+_LOGGING: list[bool] = []
+
+
+def _quiet() -> None:
+    """OR-Tools' C++ log goes to stderr until absl's log is set up: set it up once per process,
+    errors only (a rejected start assignment is not the user's concern)."""
+    if _LOGGING:
+        return
+    _LOGGING.append(True)
+    try:
+        from ortools.init.python import init
+
+        init.CppBridge.init_logging("staghunt")
+        init.CppBridge.set_flags(init.CppFlags(stderrthreshold=3, log_prefix=False))
+    except Exception:  # noqa: BLE001 - only the log's wording is at stake
+        pass
+
+
+def solve_ortools(problem: Problem, solutions: int = 60, rounds: int = 8, time_cap_s: float = 10.0,
+                  start: Allocation | None = None, span: bool = False) -> Allocation:
+    """OR-Tools' routing for the makespan.
+
+    Default (``span=False``): bisection on the makespan. Each round bounds every UAV's end by
+    ``M`` and asks OR-Tools for an allocation of least total flight time within it (cheapest
+    insertion, then ``solutions`` solutions of guided local search, from the best allocation so
+    far); found: the upper end drops to its makespan, else the lower end rises to ``M``. Starts
+    from ``[lower bound, start's makespan]``, ``rounds`` rounds or until the two are within 1 %.
+    OR-Tools' local search guides itself well by summed costs and poorly by a maximum, so this
+    reaches lower makespans in less time than minimising the global span directly.
+
+    ``span=True``: one run minimising the time dimension's global span (the makespan), for
+    ``solutions`` solutions within ``time_cap_s``: the textbook model, used as the reference
+    with a long time limit. ``time_cap_s`` bounds each run on a slow machine; the solution
+    counts are the reproducible budget."""
+    _quiet()
+    started = time.perf_counter()
+    best = start.routes if start is not None and start.ok else None
+    plan0 = [start.tasks_of(k) for k in range(problem.fleet.n)] if best is not None else None
+    if span:
+        plan = _run(_model(problem, None, True), problem, solutions, time_cap_s, plan0)
+        if plan is None:
+            return _infeasible(problem, started)
+        return _result(problem, "ortools-span", plan, _dropped(problem, plan), started,
+                       {"solutions": solutions, "time_cap_s": time_cap_s})
+    lo = lower_bound(problem)
+    if plan0 is None:
+        plan0 = _run(_model(problem, None, False), problem, solutions, time_cap_s, None)
+        if plan0 is None:
+            return _infeasible(problem, started)
+    hi = max(r.end for r in time_routes(problem, plan0)[0])
+    best_plan, trace = plan0, []
+    for _ in range(rounds):
+        if hi <= lo * 1.01:
+            break
+        bound = 0.5 * (lo + hi)
+        plan = _run(_model(problem, bound, False), problem, solutions, time_cap_s, best_plan)
+        ok = plan is not None and not [i for i in _dropped(problem, plan) if problem.tasks[i].required]
+        if ok:
+            end = max(r.end for r in time_routes(problem, plan)[0])
+            if end < hi:
+                best_plan, hi = plan, end
+            else:
+                lo = bound
+        else:
+            lo = bound
+        trace.append([round(bound, 1), bool(ok)])
+    return _result(problem, "ortools", best_plan, _dropped(problem, best_plan), started,
+                   {"solutions_per_round": solutions, "rounds": trace, "time_cap_s": time_cap_s})
+
+
+def _dropped(problem: Problem, plan: list[list[tuple[int, int]]]) -> list[int]:
+    seen = {ti for visits in plan for ti, _ in visits}
+    return [t.index for t in problem.tasks if t.index not in seen]
+
+
+def _infeasible(problem: Problem, started: float) -> Allocation:
+    return Allocation("ortools", "infeasible", "OR-Tools found no allocation: the endurances or time windows cannot "
+                      "all be met", (), math.inf, lower_bound(problem), tuple(t.index for t in problem.tasks),
+                      time.perf_counter() - started)
+
+
+def solve(problem: Problem, method: str = "ortools", solutions: int = 60, rounds: int = 8,
+          time_cap_s: float = 10.0) -> Allocation:
+    """Allocate with ``method``: ``"ortools"`` (:func:`solve_ortools` started from the greedy
+    allocation, so never worse than it) or ``"greedy"``."""
+    g = greedy(problem)
+    if method == "greedy":
+        return g
+    return solve_ortools(problem, solutions, rounds, time_cap_s, start=g)

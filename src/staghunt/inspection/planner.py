@@ -1,0 +1,329 @@
+"""``plan_inspection``: objectives to an allocated, cooperative, timed and checked inspection.
+
+1. Capture plans from every objective and its camera (:mod:`staghunt.acquisition`).
+2. Tasks (one per capture segment) allocated to the UAVs for the makespan within their
+   endurance and the windows (:mod:`.allocation`), the greedy baseline beside it.
+3. The legs that join the captures (:mod:`.legs`): the team takes off together and plays the game
+   to its first captures (formation over the scenario's graph, separation, obstacles); after that
+   each UAV is on its own clock: between captures and home when its work is done it flies alone
+   (a straight hop, the shortest way round or over an obstacle, or the game with it as the only
+   player). Coming home together would keep the early ones hovering at their last capture in the
+   others' way, spending endurance for nothing: they come home as they finish.
+4. Every UAV's flight timed (:mod:`.timeline`) and the whole team checked in time: separation at
+   the same instant, clearance, ground, ceiling. A conflict between two UAVs at work is resolved
+   by making the later one wait.
+5. The coverage the planned photos give (:mod:`staghunt.acquisition.coverage`).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field, replace
+from enum import Enum
+
+import numpy as np
+
+from staghunt.acquisition.coverage import Photos, measure_inspection
+from staghunt.acquisition.plan import plan_captures
+from staghunt.acquisition.segments import CapturePlan
+from staghunt.costs import CostModel, to_absolute
+from staghunt.errors import FieldError
+from staghunt.inspection.allocation import Allocation, Problem, lower_bound, solve
+from staghunt.inspection.legs import solo_leg, team_leg
+from staghunt.inspection.tasks import Fleet, Task, make_tasks
+from staghunt.inspection.timeline import Piece, Timeline, capture_piece, hover_piece, path_piece, team_pieces
+from staghunt.result import PlanResult
+from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.response import CertifyOptions
+from staghunt.task.objectives import Inspection
+from staghunt.trajectory import SafetyReport, check_positions
+
+__all__ = ["InspectConfig", "InspectionPlan", "InspectionStatus", "plan_inspection", "fleet_of"]
+
+SLACK = 1.25
+"""Planned transit time over the straight line's (legs round obstacles, accelerating, braking)."""
+
+
+class InspectionStatus(str, Enum):
+    """``PLANNED``: every required task allocated, every leg feasible, the team safe in time.
+    ``INFEASIBLE``: a leg has no feasible path or a window is missed (``message`` says which).
+    ``UNSAFE``: the timed team breaks a separation or clearance that waiting could not mend."""
+
+    PLANNED = "planned"
+    INFEASIBLE = "infeasible"
+    UNSAFE = "unsafe"
+
+
+@dataclass(frozen=True)
+class InspectConfig:
+    """How an inspection is planned.
+
+    - ``allocation``: ``"ortools"`` (bisection on the makespan with OR-Tools, from the greedy
+      allocation) or ``"greedy"``; ``solutions``, ``rounds``, ``time_cap_s``: OR-Tools' budget
+      (:func:`staghunt.inspection.allocation.solve_ortools`).
+    - ``leg_settings``: the swarm settings of the team legs (``None``: the scenario's);
+      ``solo_settings``: of a UAV's own leg round an obstacle.
+    - ``certify``: the team legs' equilibrium certificate (``None``: none).
+    - ``engine``: the planning engine (``"auto"``, ``"numba"``, ``"numpy"``).
+    """
+
+    allocation: str = "ortools"
+    solutions: int = 40
+    rounds: int = 8
+    time_cap_s: float = 3.0
+    leg_settings: SolverSettings | None = None
+    solo_settings: SolverSettings = SolverSettings(particles=200, iterations=100, waypoints=5)
+    certify: CertifyOptions | None = CertifyOptions()
+    engine: str = "auto"
+
+
+@dataclass(frozen=True, eq=False)
+class InspectionPlan:
+    """A planned inspection.
+
+    - ``captures``: every objective's capture segments; ``tasks``: the allocated units.
+    - ``allocation``: the chosen allocation, ``baseline``: the greedy one beside it.
+    - ``outbound``: the team's game from take-off to the first captures (``None`` when nobody
+      flies); ``solo``: ``[(uav, PlanResult), ...]`` the legs the game planned for one UAV alone.
+    - ``timeline``: every UAV's flight in time; ``safety``: the team checked in time.
+    - ``coverage``: what the planned photos cover, per objective.
+    """
+
+    scenario: Scenario
+    inspection: Inspection
+    config: InspectConfig
+    seed: int
+    status: InspectionStatus
+    message: str
+    captures: CapturePlan
+    tasks: tuple[Task, ...]
+    allocation: Allocation
+    baseline: Allocation
+    outbound: PlanResult | None
+    solo: tuple[tuple[int, PlanResult], ...]
+    timeline: Timeline
+    safety: SafetyReport
+    coverage: tuple[dict, ...]
+    times: dict = field(default_factory=dict)
+
+    @property
+    def makespan(self) -> float:
+        return self.timeline.end
+
+    def photos(self) -> Photos:
+        """The planned photos of every UAV (time, position, gimbal angles, speed)."""
+        parts = []
+        for n, pieces in enumerate(self.timeline.pieces):
+            for p in pieces:
+                if p.kind != "capture" or p.segment is None:
+                    continue
+                pos, yaw, pitch = p.segment.photo_poses()
+                # when: along the capture in proportion to the distance flown (planned timing)
+                if len(pos) > 1:
+                    s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pos, axis=0), axis=1))])
+                    frac = s / max(s[-1], 1e-9)
+                else:
+                    frac = np.array([0.5])
+                t = p.t0 + frac * p.duration
+                parts.append(Photos(t, np.full(len(pos), n), pos, yaw, pitch, np.full(len(pos), p.segment.speed if
+                                    p.segment.trigger == "distance" else 0.0), np.full(len(pos), p.segment.objective),
+                                    np.full(len(pos), int(p.task))))
+        return Photos.concat(parts)
+
+
+def fleet_of(scenario: Scenario, inspection: Inspection) -> Fleet:
+    """The fleet at take-off: everyone at its start, its whole endurance ahead."""
+    n = scenario.n_uavs
+    terrain = scenario.world.terrain
+    return Fleet(
+        starts=to_absolute(terrain, scenario.starts()), goals=to_absolute(terrain, scenario.goals()),
+        ready=np.zeros(n), endurance=np.array([p.endurance_s for p in inspection.payloads], dtype=float),
+        speed=np.full(n, scenario.vehicle.cruise_speed), names=tuple(u.name for u in scenario.team),
+        active=np.ones(n, dtype=bool))
+
+
+def _check_capable(tasks: list[Task], scenario: Scenario) -> None:
+    for t in tasks:
+        if not t.uavs:
+            raise FieldError(f"objectives: {t.objective}: no UAV carries camera {t.segment.camera!r} with a gimbal "
+                             "that reaches its pitch", "objectives")
+
+
+def _shortfall(problem: Problem, alloc: Allocation) -> str:
+    """Why no allocation fits the endurances, in words: what is missing."""
+    fleet = problem.fleet
+    lb = lower_bound(problem)
+    short = [k for k in range(fleet.n) if fleet.active[k] and fleet.endurance[k] < lb]
+    total = sum(float(fleet.endurance[k]) for k in range(fleet.n) if fleet.active[k])
+    need = sum(t.duration for t in problem.tasks if t.required)
+    if need > total:
+        return (f"endurance too short for any allocation: the required capture work alone takes {need:.0f} s, the "
+                f"team has {total:.0f} s of flight in all ({need - total:.0f} s missing)")
+    if short:
+        return (f"endurance too short for any allocation: every UAV needs at least {lb:.0f} s (lower bound of the "
+                f"makespan), {fleet.names[short[0]]} has {fleet.endurance[short[0]]:.0f} s")
+    return f"no allocation meets every endurance and time window ({alloc.message})"
+
+
+def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectConfig = InspectConfig(),
+                    seed: int = 0) -> InspectionPlan:
+    """Plan the inspection of ``scenario`` (see the module's docstring). Raises
+    :class:`~staghunt.errors.FieldError` for objectives the team cannot fly at all (no camera for
+    them, endurance too short for any allocation)."""
+    times: dict[str, float] = {}
+    t = time.perf_counter()
+    captures = plan_captures(scenario, inspection)
+    tasks = make_tasks(inspection, captures)
+    _check_capable(tasks, scenario)
+    times["captures_s"] = time.perf_counter() - t
+    fleet = fleet_of(scenario, inspection)
+    problem = Problem(tuple(tasks), fleet, slack=SLACK)
+    t = time.perf_counter()
+    baseline = solve(problem, "greedy")
+    alloc = baseline if config.allocation == "greedy" else solve(problem, config.allocation, config.solutions,
+                                                                 config.rounds, config.time_cap_s)
+    times["allocation_s"] = time.perf_counter() - t
+    if not alloc.ok:
+        raise FieldError(_shortfall(problem, alloc), "endurance")
+    t = time.perf_counter()
+    fly = Flight(scenario, inspection, config, seed, tasks)
+    timeline, outbound, solo, problems = fly.build(alloc)
+    times["legs_s"] = time.perf_counter() - t
+    t = time.perf_counter()
+    safety = check_timeline(scenario, timeline)
+    times["check_s"] = time.perf_counter() - t
+    plan = InspectionPlan(scenario, inspection, config, seed, InspectionStatus.PLANNED, "", captures, tuple(tasks), alloc,
+                          baseline, outbound, tuple(solo), timeline, safety, (), times)
+    t = time.perf_counter()
+    cameras = {o.name: inspection.camera_for(o) for o in inspection.objectives}
+    coverage = tuple(measure_inspection(inspection, scenario, plan.photos(), cameras))
+    times["coverage_s"] = time.perf_counter() - t
+    status, message = InspectionStatus.PLANNED, f"planned: makespan {timeline.end:.0f} s"
+    if problems:
+        status, message = InspectionStatus.INFEASIBLE, "infeasible: " + "; ".join(problems[:3])
+    elif not safety.safe:
+        status, message = InspectionStatus.UNSAFE, "unsafe: " + "; ".join(safety.problems[:3])
+    return replace(plan, status=status, message=message, coverage=coverage, times=times)
+
+
+def check_timeline(scenario: Scenario, timeline: Timeline, step: float = 0.1) -> SafetyReport:
+    """The team's flight checked every ``step`` s (separation at the same instant, clearance,
+    ground, ceiling): :func:`staghunt.trajectory.check_positions`."""
+    ts = np.arange(0.0, timeline.end + step, step)
+    pos = timeline.positions(ts)
+    return check_positions(CostModel.from_scenario(scenario), pos, list(timeline.names), step)
+
+
+@dataclass
+class Flight:
+    """Builds every UAV's timeline from an allocation (step 3 and 4 of the module's docstring)."""
+
+    scenario: Scenario
+    inspection: Inspection
+    config: InspectConfig
+    seed: int
+    tasks: list[Task]
+
+    def build(self, alloc: Allocation) -> tuple[Timeline, PlanResult | None, list[tuple[int, PlanResult]], list[str]]:
+        scenario, tasks = self.scenario, self.tasks
+        limits = scenario.vehicle
+        settings = self.config.leg_settings or scenario.solver
+        fleet = fleet_of(scenario, self.inspection)
+        plans = [alloc.tasks_of(k) for k in range(scenario.n_uavs)]
+        flying = [k for k in range(scenario.n_uavs) if plans[k]]
+        problems: list[str] = []
+        pieces: list[list[Piece]] = [[] for _ in range(scenario.n_uavs)]
+        outbound = None
+        solo: list[tuple[int, PlanResult]] = []
+        if flying:
+            firsts = np.array([tasks[plans[k][0][0]].ways[plans[k][0][1]].entry for k in flying])
+            outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", settings, self.seed,
+                                self.config.engine, self.config.certify)
+            if not outbound.feasible:
+                problems.append(f"outbound leg: {outbound.message}")
+            for i, p in zip(flying, team_pieces(0.0, np.asarray(outbound.paths), limits, "outbound")):
+                pieces[i].append(p)
+        for k in flying:
+            here = pieces[k][-1].points[-1]
+            for j, (ti, wi) in enumerate(plans[k]):
+                task, way = tasks[ti], tasks[ti].ways[wi]
+                t0 = pieces[k][-1].t1
+                if j > 0:
+                    pts, leg = solo_leg(scenario, k, here, way.entry, self.config.solo_settings,
+                                        self.seed + 1000 * (k + 1) + j, self.config.engine)
+                    if leg is not None:
+                        solo.append((k, leg))
+                        if not leg.feasible:
+                            problems.append(f"{fleet.names[k]} leg to task {ti}: {leg.message}")
+                    if len(pts) > 1 and float(np.linalg.norm(pts[-1] - pts[0])) > 1e-6:
+                        pieces[k].append(path_piece("leg", t0, pts, limits, label=f"to task {ti}"))
+                        t0 = pieces[k][-1].t1
+                if task.window is not None and t0 < task.window[0]:
+                    pieces[k].append(hover_piece(t0, task.window[0], way.entry, label=f"waits for the window of task {ti}"))
+                    t0 = task.window[0]
+                pieces[k].append(capture_piece(t0, way.segment, limits, ti))
+                here = way.exit
+        for k in flying:  # home on its own as soon as its work is done
+            here = pieces[k][-1].points[-1]
+            pts, leg = solo_leg(scenario, k, here, fleet.goals[k], self.config.solo_settings,
+                                self.seed + 1000 * (k + 1) + 999, self.config.engine)
+            if leg is not None:
+                solo.append((k, leg))
+                if not leg.feasible:
+                    problems.append(f"{fleet.names[k]} leg home: {leg.message}")
+            pieces[k].append(path_piece("leg", pieces[k][-1].t1, pts, limits, label="home"))
+        start_work = pieces[flying[0]][0].t1 if flying else 0.0
+        self._deconflict(pieces, start_work)
+        for k in flying:
+            for p in pieces[k]:
+                task = tasks[p.task] if p.task is not None else None
+                if task is not None and task.window is not None and p.t1 > task.window[1] + 1e-6:
+                    problems.append(f"{fleet.names[k]} flies task {p.task} ({task.objective}) until {p.t1:.0f} s, "
+                                    f"past its window's end {task.window[1]:.0f} s")
+        for k in range(scenario.n_uavs):
+            if not pieces[k]:  # no work: stays at its start
+                pieces[k].append(hover_piece(0.0, 0.0, fleet.starts[k], label="no task"))
+        for k in flying:
+            used = pieces[k][-1].t1
+            if used > fleet.endurance[k] + 1e-6:
+                problems.append(f"{fleet.names[k]} flies {used:.0f} s, its endurance is {fleet.endurance[k]:.0f} s")
+        timeline = Timeline(tuple(tuple(p) for p in pieces), fleet.names)
+        return timeline, outbound, solo, problems
+
+    def _deconflict(self, pieces: list[list[Piece]], after: float, step: float = 0.2, rounds: int = 40) -> None:
+        """Make the later of two UAVs that would come too close while at work (after ``after``,
+        the end of the team's outbound leg) wait before the piece that brings it there (2 s at a
+        time, up to ``rounds`` times); what is left is for the check in time to report."""
+        scenario = self.scenario
+        limit = np.array([scenario.costs.safe_distance + 2 * u.radius for u in scenario.team])
+        for _ in range(rounds):
+            tl = Timeline(tuple(tuple(p) for p in pieces if p), tuple(str(i) for i, p in enumerate(pieces) if p))
+            idx = [i for i, p in enumerate(pieces) if p]
+            if len(idx) < 2:
+                return
+            ts = np.arange(0.0, tl.end + step, step)
+            pos = tl.positions(ts)  # (n, T, 3)
+            d = np.linalg.norm(pos[:, None] - pos[None, :], axis=-1)  # (n, n, T)
+            d[np.arange(len(idx)), np.arange(len(idx))] = math.inf
+            bad = (d <= limit[idx][:, None, None]) & (ts > after)[None, None, :]
+            if not bad.any():
+                return
+            a, b, ti = (int(v[0]) for v in np.nonzero(bad))
+            t_hit = ts[ti]
+            # the UAV whose current piece started later waits before it
+            pa = next((p for p in pieces[idx[a]] if p.t0 <= t_hit <= p.t1), None)
+            pb = next((p for p in pieces[idx[b]] if p.t0 <= t_hit <= p.t1), None)
+            if pa is None and pb is None:
+                return
+            k, p = (idx[a], pa) if pb is None or (pa is not None and pa.t0 >= pb.t0) else (idx[b], pb)
+            if p.label == "outbound":
+                return
+            self._delay(pieces[k], pieces[k].index(p), 2.0)
+
+    @staticmethod
+    def _delay(pieces: list[Piece], i: int, by: float) -> None:
+        """Insert a hover of ``by`` seconds before piece ``i`` and shift the rest."""
+        at = pieces[i].points[0] if pieces[i].hold is None else pieces[i].hold
+        shifted = [replace(p, t0=p.t0 + by, t1=p.t1 + by) for p in pieces[i:]]
+        pieces[i:] = [hover_piece(pieces[i].t0, pieces[i].t0 + by, at, label="waits for a team-mate to pass")] + shifted

@@ -1,0 +1,133 @@
+"""Each UAV's mission in time: its legs, captures and hovers back to back.
+
+A :class:`Piece` is one stretch of a UAV's flight between two instants: a leg (transit), a
+capture (a segment flown with the camera working) or a hover (waiting for a window, a
+team-mate, or the team's return). Legs and captures are timed time-optimally (TOPP-RA,
+:func:`staghunt.trajectory.time_plan`) from rest to rest under the UAV's limits, a capture at the
+segment's speed; a team leg is timed for the whole team at once (its waypoints reached
+together). A :class:`Timeline` answers ``state(t)``: position, velocity, acceleration and jerk
+of every UAV at ``t`` (a UAV past its last piece holds its last position).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from staghunt.acquisition.segments import CaptureSegment
+from staghunt.task import VehicleLimits
+from staghunt.trajectory import time_plan
+
+__all__ = ["Piece", "Timeline", "capture_piece", "hover_piece", "path_piece", "team_pieces"]
+
+
+@dataclass(frozen=True, eq=False)
+class Piece:
+    """UAV flight from ``t0`` to ``t1`` (s): ``kind`` ``"leg"``, ``"capture"`` or ``"hover"``;
+    ``spline``: position in the piece's own time ``t - t0`` (``(3,)`` values; column ``column``
+    of a team spline), ``None`` for a hover at ``hold``; ``points``: the geometric path
+    ``(M, 3)``; for a capture, ``segment`` and the ``task`` it belongs to."""
+
+    kind: str
+    t0: float
+    t1: float
+    points: np.ndarray
+    spline: CubicSpline | None = None
+    column: int | None = None
+    hold: np.ndarray | None = None
+    segment: CaptureSegment | None = None
+    task: int | None = None
+    label: str = ""
+
+    @property
+    def duration(self) -> float:
+        return self.t1 - self.t0
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        """``(4, T, 3)`` position, velocity, acceleration, jerk at times ``t`` ``(T,)`` within the piece."""
+        t = np.asarray(t, dtype=float)
+        if self.spline is None:
+            out = np.zeros((4, len(t), 3))
+            out[0] = self.hold
+            return out
+        tau = np.clip(t - self.t0, 0.0, self.spline.x[-1])
+        vals = [self.spline(tau, nu) for nu in range(4)]
+        if self.column is not None:
+            vals = [v[:, self.column] for v in vals]
+        return np.stack(vals)
+
+
+def _spline_piece(kind: str, t0: float, points: np.ndarray, spline: CubicSpline, column: int | None, **kw) -> Piece:
+    return Piece(kind, t0, t0 + float(spline.x[-1]), points, spline=spline, column=column, **kw)
+
+
+def path_piece(kind: str, t0: float, points: np.ndarray, limits: VehicleLimits, **kw) -> Piece:
+    """One UAV's polyline ``points`` ``(M, 3)`` from rest to rest from ``t0``, within ``limits``."""
+    pts = np.asarray(points, dtype=float)
+    if len(pts) < 2 or float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) < 1e-9:
+        return hover_piece(t0, t0, pts[0], **kw)
+    return _spline_piece(kind, t0, pts, time_plan(pts[None], limits).spline, 0, **kw)
+
+
+def capture_piece(t0: float, segment: CaptureSegment, limits: VehicleLimits, task: int) -> Piece:
+    """A capture segment flown at its speed from ``t0`` (a viewpoint: a hover of ``dwell_s``)."""
+    if segment.trigger == "points" and len(segment.points) == 1:
+        return hover_piece(t0, t0 + segment.dwell_s, segment.points[0], kind="capture", segment=segment, task=task)
+    capped = VehicleLimits(max_speed=limits.max_speed, max_acceleration=limits.max_acceleration,
+                           cruise_speed=min(limits.cruise_speed, segment.speed))
+    return path_piece("capture", t0, segment.points, capped, segment=segment, task=task)
+
+
+def hover_piece(t0: float, t1: float, at: np.ndarray, kind: str = "hover", **kw) -> Piece:
+    at = np.asarray(at, dtype=float)
+    return Piece(kind, t0, t1, at[None].copy(), hold=at.copy(), **kw)
+
+
+def team_pieces(t0: float, points: np.ndarray, limits: VehicleLimits, label: str) -> list[Piece]:
+    """The team's paths ``points`` ``(n, M, 3)`` timed together from ``t0``: one piece per UAV."""
+    traj = time_plan(np.asarray(points, dtype=float), limits)
+    return [_spline_piece("leg", t0, points[i], traj.spline, i, label=label) for i in range(len(points))]
+
+
+@dataclass(frozen=True, eq=False)
+class Timeline:
+    """Every UAV's pieces, back to back from 0 (``pieces[n]``)."""
+
+    pieces: tuple[tuple[Piece, ...], ...]
+    names: tuple[str, ...]
+    details: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        return len(self.pieces)
+
+    @property
+    def end(self) -> float:
+        return max((p[-1].t1 for p in self.pieces if p), default=0.0)
+
+    def ends(self) -> np.ndarray:
+        """``(N,)`` when each UAV's last piece ends."""
+        return np.array([p[-1].t1 if p else 0.0 for p in self.pieces])
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        """``(4, N, T, 3)`` every UAV's position, velocity, acceleration and jerk at ``t`` ``(T,)``."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        out = np.zeros((4, self.n, len(t), 3))
+        for n, pieces in enumerate(self.pieces):
+            starts = np.array([p.t0 for p in pieces])
+            which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
+            for i in np.unique(which):
+                sel = which == i
+                out[:, n, sel] = pieces[i].state(t[sel])
+            past = t > pieces[-1].t1
+            if past.any():
+                last = pieces[-1].state(np.array([pieces[-1].t1]))[0, 0]
+                out[0, n, past] = last
+                out[1:, n, past] = 0.0
+        return out
+
+    def positions(self, t: np.ndarray) -> np.ndarray:
+        """``(N, T, 3)`` positions at ``t``."""
+        return self.state(t)[0]
