@@ -7,8 +7,8 @@ certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly)
 :mod:`~staghunt.cli.common` holds what they share (the parser, option blocks), with the options'
 types in :mod:`~staghunt.cli.argtypes`, exit codes and error lines in :mod:`~staghunt.cli.wording`,
 output path checks in :mod:`~staghunt.cli.paths` and the terminal status line in
-:mod:`~staghunt.cli.status` (all re-exported by ``common``). A command's help is its handler's docstring, its exit codes listed after
-its options (:func:`~staghunt.cli.common.command`).
+:mod:`~staghunt.cli.status` (all re-exported by ``common``). A command's help is its handler's
+docstring, its exit codes listed after its options (:func:`~staghunt.cli.common.command`).
 
 Exit codes:
 
