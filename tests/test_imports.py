@@ -19,8 +19,8 @@ LAYERS: list[set[str]] = [
     {"inputs", "encoding", "world", "camera"},  # reading untrusted input; the world's shapes; cameras
     {"task"},  # team, formation, objectives and payloads
     {"scenario", "geo"},  # the problem as given; the site frame
-    {"costs", "acquisition"},  # the cost model; capture plans, triggering and coverage
-    {"checks", "solvers"},
+    {"costs"},
+    {"checks", "solvers", "acquisition"},  # acquisition: capture plans, triggering and coverage
     {"engine", "trajectory"},  # engines run the solvers' problems; timing of checked paths
     {"budget", "result"},
     {"io"},  # files in and out

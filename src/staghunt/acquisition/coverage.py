@@ -31,7 +31,8 @@ from staghunt.camera.projection import project, surface_gsd
 from staghunt.scenario.model import Scenario
 from staghunt.task.objectives import AreaObjective, FacadeObjective, Inspection, PointObjective
 
-__all__ = ["Coverage", "Photos", "Surface", "area_cells", "facade_patches", "measure", "measure_inspection"]
+__all__ = ["Coverage", "Photos", "Surface", "area_cells", "facade_patches", "measure", "measure_counts",
+           "measure_inspection"]
 
 MIN_IMAGES = 5
 """Images per element the survey target asks for."""
@@ -227,42 +228,58 @@ def _overlaps(photos: Photos, camera: Camera, kind: str, depth: np.ndarray, targ
     return out[0], out[1]
 
 
-def measure(surface: Surface, photos: Photos, camera: Camera, scenario: Scenario, target_gsd_cm: float,
-            max_incidence_deg: float = 90.0, min_images: int = MIN_IMAGES,
-            overlaps: tuple[float, float] | None = None) -> Coverage:
-    """The coverage of ``surface`` by ``photos`` taken with ``camera``."""
+def _counts(surface: Surface, photos: Photos, camera: Camera, scenario: Scenario, target_gsd_cm: float,
+            max_incidence_deg: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per element ``(C,)``: photos imaging it at the target, photos imaging it at all, its best
+    GSD and its least incidence among the photos at the target."""
     C = len(surface.points)
     count = np.zeros(C, dtype=np.int64)
     seen = np.zeros(C, dtype=np.int64)
     best = np.full(C, np.inf)
     inc_best = np.full(C, np.inf)
-    if len(photos) and C:
-        tree = cKDTree(surface.points)
-        hx, hy = camera.half_fov_rad
-        diag = math.atan(math.hypot(math.tan(hx), math.tan(hy)))
-        for f in range(len(photos)):
-            cam = photos.position[f]
-            # the farthest an element at the target GSD can be: its depth over cos(half diagonal)
-            reach = camera.distance_m(target_gsd_cm) / math.cos(diag) * 1.05 + surface.cell
-            idx = np.asarray(tree.query_ball_point(cam, reach), dtype=np.intp)
-            if not len(idx):
-                continue
-            p = surface.points[idx]
-            _, _, _, inside = project(camera, p, cam, photos.yaw[f], photos.pitch[f])
-            idx, p = idx[inside], p[inside]
-            if not len(idx):
-                continue
-            gsd, inc = surface_gsd(camera, p, surface.normals[idx], cam, photos.yaw[f], photos.pitch[f])
-            facing = inc < 90.0
-            idx, p, gsd, inc = idx[facing], p[facing], gsd[facing], inc[facing]
-            lift = p + 0.05 * surface.normals[idx]
-            visible = ~occluded(scenario, np.broadcast_to(cam, p.shape), lift)
-            idx, gsd, inc = idx[visible], gsd[visible], inc[visible]
-            seen[idx] += 1
-            good = (gsd <= target_gsd_cm * (1 + 1e-9)) & (inc <= max_incidence_deg + 1e-9)
-            count[idx[good]] += 1
-            np.minimum.at(best, idx, gsd)
-            np.minimum.at(inc_best, idx[good], inc[good])
+    if not len(photos) or not C:
+        return count, seen, best, inc_best
+    tree = cKDTree(surface.points)
+    hx, hy = camera.half_fov_rad
+    diag = math.atan(math.hypot(math.tan(hx), math.tan(hy)))
+    # the farthest an element at the target GSD can be: its depth over cos(half diagonal)
+    reach = camera.distance_m(target_gsd_cm) / math.cos(diag) * 1.05 + surface.cell
+    for f in range(len(photos)):
+        cam = photos.position[f]
+        idx = np.asarray(tree.query_ball_point(cam, reach), dtype=np.intp)
+        if not len(idx):
+            continue
+        p = surface.points[idx]
+        _, _, _, inside = project(camera, p, cam, photos.yaw[f], photos.pitch[f])
+        idx, p = idx[inside], p[inside]
+        if not len(idx):
+            continue
+        gsd, inc = surface_gsd(camera, p, surface.normals[idx], cam, photos.yaw[f], photos.pitch[f])
+        facing = inc < 90.0
+        idx, p, gsd, inc = idx[facing], p[facing], gsd[facing], inc[facing]
+        lift = p + 0.05 * surface.normals[idx]
+        visible = ~occluded(scenario, np.broadcast_to(cam, p.shape), lift)
+        idx, gsd, inc = idx[visible], gsd[visible], inc[visible]
+        seen[idx] += 1
+        good = (gsd <= target_gsd_cm * (1 + 1e-9)) & (inc <= max_incidence_deg + 1e-9)
+        count[idx[good]] += 1
+        np.minimum.at(best, idx, gsd)
+        np.minimum.at(inc_best, idx[good], inc[good])
+    return count, seen, best, inc_best
+
+
+def measure_counts(surface: Surface, photos: Photos, camera: Camera, scenario: Scenario, target_gsd_cm: float,
+                   max_incidence_deg: float = 90.0) -> np.ndarray:
+    """``(C,)`` photos imaging each element at the target (the coverage map)."""
+    return _counts(surface, photos, camera, scenario, target_gsd_cm, max_incidence_deg)[0]
+
+
+def measure(surface: Surface, photos: Photos, camera: Camera, scenario: Scenario, target_gsd_cm: float,
+            max_incidence_deg: float = 90.0, min_images: int = MIN_IMAGES,
+            overlaps: tuple[float, float] | None = None) -> Coverage:
+    """The coverage of ``surface`` by ``photos`` taken with ``camera``."""
+    C = len(surface.points)
+    count, seen, best, inc_best = _counts(surface, photos, camera, scenario, target_gsd_cm, max_incidence_deg)
     depth = _depths(surface, photos, scenario)
     front, side = _overlaps(photos, camera, surface.kind, depth, overlaps or (0.0, 0.0))
     blur = photos.speed * camera.exposure_s / (camera.gsd_cm(np.maximum(depth, 1e-3)) / 100.0)

@@ -1,7 +1,8 @@
 """The ``staghunt`` command line: parse, call the library, report. No planning logic lives here.
 
 One module per group of commands: :mod:`~staghunt.cli.scenarios` (scenarios, show, methods,
-schema), :mod:`~staghunt.cli.plan` (plan, evaluate), :mod:`~staghunt.cli.analysis` (compare,
+schema), :mod:`~staghunt.cli.plan` (plan, evaluate), :mod:`~staghunt.cli.inspect` (cameras, inspect, and
+plan's inspections), :mod:`~staghunt.cli.analysis` (compare,
 certify), :mod:`~staghunt.cli.missions` (export), :mod:`~staghunt.cli.fly` (fly),
 :mod:`~staghunt.cli.sweep` (sweep);
 :mod:`~staghunt.cli.common` holds what they share (the parser, option blocks), with the options'
@@ -34,7 +35,7 @@ import sys
 import warnings
 from typing import Sequence
 
-from staghunt.cli import analysis, fly, missions, plan, scenarios, sweep
+from staghunt.cli import analysis, fly, inspect, missions, plan, scenarios, sweep
 from staghunt.cli.common import (
     EXIT_BROKEN_PIPE, EXIT_INTERRUPTED, EXIT_USAGE, PROG, Parser, UsageError, error, one_line, say,
 )
@@ -58,6 +59,7 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     scenarios.add_commands(sub)
     plan.add_commands(sub)
+    inspect.add_commands(sub)
     analysis.add_commands(sub)
     missions.add_commands(sub)
     fly.add_commands(sub)

@@ -42,6 +42,10 @@ def add_commands(sub: Any) -> None:
                    "stops at the first plan the certificate accepts, leaving later starts unsearched "
                    "(the time to a certified equilibrium, e.g. for re-planning; needs the certificate)")
     add_plots_option(p)
+    from staghunt.cli.inspect import add_allocation_option, add_objectives_option
+
+    add_objectives_option(p)
+    add_allocation_option(p)
     p.add_argument("--dry-run", action="store_true",
                    help="check the inputs and print the budget and the memory the run needs "
                    "(estimate), without planning or writing anything")
@@ -62,7 +66,10 @@ def cmd_plan(args: argparse.Namespace) -> int:
     Plan paths for the team of SCENARIO, then certify the plan: every UAV's Nash gap by a unilateral
     best-response search (the verdict is printed and stored in result.json; 'staghunt certify'
     re-checks with a larger budget). Budget options default to the scenario's [solver] settings (the
-    built-ins carry the paper's 2000 particles, 1500 iterations, K = 10). Memory: the run's arrays
+    built-ins carry the paper's 2000 particles, 1500 iterations, K = 10). With objectives (in the
+    scenario, or --objectives FILE) it plans the inspection instead: captures, allocation, the
+    team's game to the first captures, every UAV timed and checked, the planned coverage;
+    DIR/inspection.json and figures. Memory: the run's arrays
     are estimated before anything is allocated (see --dry-run); a run that cannot fit in the
     available memory is refused, one that needs over a quarter of it is announced on stderr.
     """
@@ -70,7 +77,11 @@ def cmd_plan(args: argparse.Namespace) -> int:
     from staghunt.io.result_json import write_result
     from staghunt.scenario import load_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_scenario(args.scenario, objectives=args.objectives)
+    if scenario.inspection is not None and scenario.inspection.objectives and not args.dry_run:
+        from staghunt.cli.inspect import run_inspection_plan
+
+        return run_inspection_plan(scenario, args, certify_options(args))
     settings = budget_settings(scenario, args)
     if args.out is not None:
         out_dir = Path(args.out)

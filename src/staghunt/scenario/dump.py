@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from staghunt.camera import Camera, camera_table
 from staghunt.scenario.dem import grid_digest
 from staghunt.scenario.model import Scenario
 from staghunt.task import VehicleLimits
@@ -75,17 +76,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         ],
         "nofly": [{"name": p.name, "polygon": [list(v) for v in p.polygon]} for p in w.prisms if p.is_nofly],
         "airspace": {"ceiling": None if not math.isfinite(w.ceiling) else float(w.ceiling)},
-        "team": [
-            {
-                "name": u.name,
-                "start": [float(v) for v in u.start],
-                "goal": [float(v) for v in u.goal],
-                "radius": float(u.radius),
-                "beta": float(u.weights.beta),
-                "weights": _floats(u.weights.as_array()),
-            }
-            for u in scenario.team
-        ],
+        "team": scenario_to_dict_team(scenario),
         "formation": {
             "incidence": np.asarray(f.incidence).astype(int).tolist(),
             "edge_weights": _floats(f.edge_weights),
@@ -118,4 +109,53 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     }
     if not scenario.dynamics.empty:
         out.update(dynamics_to_dict(scenario.dynamics))
+    if scenario.inspection is not None:
+        out.update(inspection_to_dict(scenario))
     return out
+
+
+def _camera_value(cam: Camera) -> Any:
+    """A shipped camera by its name, another as the table of its geometry."""
+    if camera_table().get(cam.name) == cam:
+        return cam.name
+    return {"name": cam.name, "sensor_width_mm": cam.sensor_width_mm, "sensor_height_mm": cam.sensor_height_mm,
+            "image_width_px": cam.image_width_px, "image_height_px": cam.image_height_px,
+            "focal_length_mm": cam.focal_length_mm, "min_trigger_interval_s": cam.min_trigger_interval_s,
+            "landscape": cam.landscape, "exposure_s": cam.exposure_s}
+
+
+def inspection_to_dict(scenario: Scenario) -> dict[str, Any]:
+    """The inspection's tables: every UAV's payload in its team entry (so the team entries of
+    :func:`scenario_to_dict` must be set first), the capture settings and the objectives in the
+    site frame (GeoJSON ones placed)."""
+    insp = scenario.inspection
+    assert insp is not None
+    team = []
+    for u, p in zip(scenario_to_dict_team(scenario), insp.payloads):
+        team.append({**u, "camera": _camera_value(p.camera),
+                     "gimbal_pitch_deg": [p.gimbal_pitch_min_deg, p.gimbal_pitch_max_deg], "endurance_s": p.endurance_s})
+    objectives = []
+    for o in insp.objectives:
+        d = {f.name: getattr(o, f.name) for f in fields(o)}
+        if "polygon" in d:
+            d["polygon"] = [list(v) for v in d["polygon"]]
+        if d.get("time_window") is not None:
+            d["time_window"] = list(d["time_window"])
+        objectives.append(d)
+    return {"team": team, "inspection": {"max_blur_px": insp.max_blur_px, "cell_m": insp.cell_m},
+            "objectives": objectives}
+
+
+def scenario_to_dict_team(scenario: Scenario) -> list[dict[str, Any]]:
+    """The team entries of :func:`scenario_to_dict`."""
+    return [
+        {
+            "name": u.name,
+            "start": [float(v) for v in u.start],
+            "goal": [float(v) for v in u.goal],
+            "radius": float(u.radius),
+            "beta": float(u.weights.beta),
+            "weights": _floats(u.weights.as_array()),
+        }
+        for u in scenario.team
+    ]

@@ -72,12 +72,15 @@ def builtin_path(name: str) -> Path:
     return Path(str(resources.files(_BUILTIN_PACKAGE).joinpath(f"{name}.toml")))
 
 
-def load_scenario(source: str | os.PathLike[str]) -> Scenario:
+def load_scenario(source: str | os.PathLike[str], objectives: str | os.PathLike[str] | None = None) -> Scenario:
     """Load and validate a scenario.
 
     ``source`` is a built-in name (see :func:`builtin_names`) or a path to a ``.toml`` file.
     Relative DEM paths inside the file are resolved against the file's directory. The scenario's
-    name defaults to the file's stem. Raises :class:`ScenarioError` on any problem.
+    name defaults to the file's stem. ``objectives``: an objectives file (TOML) whose tables
+    replace the scenario's camera, payload, capture settings and objectives
+    (:func:`staghunt.scenario.inspection.merge_objectives`; its relative GeoJSON paths are
+    resolved against its own directory). Raises :class:`ScenarioError` on any problem.
     """
     from staghunt.inputs import clip, describe_path, parse_toml, read_text
 
@@ -95,10 +98,50 @@ def load_scenario(source: str | os.PathLike[str]) -> Scenario:
         data = parse_toml(read_text(path, "scenario file (TOML)"), str(path))
     except ValueError as exc:
         raise ScenarioError(str(exc)) from None
+    if objectives is not None:
+        return with_objectives(data, objectives, name=path.stem, base_dir=path.parent, source=str(path))
     try:
         return scenario_from_dict(data, name=path.stem, base_dir=path.parent)
     except ScenarioError as exc:
         raise ScenarioError(exc.detail, exc.key, str(path)) from None
+
+
+def read_objectives(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """An objectives file read once and checked against its schema (:class:`ScenarioError`
+    naming the file and the key)."""
+    from staghunt.inputs import check_magnitudes, parse_toml, read_text
+    from staghunt.scenario.schema_inspection import ObjectivesFile
+    from staghunt.scenario.validation import validate
+
+    text = os.fspath(path)
+    try:
+        data = parse_toml(read_text(Path(text), "objectives file (TOML)"), text)
+        check_magnitudes(data)
+    except ValueError as exc:
+        raise ScenarioError(str(exc)) from None
+    try:
+        validate(data, ObjectivesFile)
+    except ScenarioError as exc:
+        raise ScenarioError(exc.detail, exc.key, text) from None
+    return data
+
+
+def with_objectives(scenario: Mapping[str, Any], objectives: str | os.PathLike[str], *, name: str,
+                    base_dir: Path | None, source: str | None = None) -> Scenario:
+    """The scenario of plain data ``scenario`` with the objectives file ``objectives`` merged in;
+    an error in the objectives is reported against the objectives file."""
+    from staghunt.scenario.inspection import INSPECTION_KEYS, merge_objectives
+
+    extra = read_objectives(objectives)
+    where = Path(os.fspath(objectives)).parent
+    for obj in extra.get("objectives", []):  # its GeoJSON files are relative to the objectives file
+        if isinstance(obj, dict) and isinstance(obj.get("geojson"), str) and base_dir is not None:
+            obj["geojson"] = str((where / obj["geojson"]).resolve())
+    try:
+        return scenario_from_dict(merge_objectives(scenario, extra), name=name, base_dir=base_dir)
+    except ScenarioError as exc:
+        mine = exc.key is not None and exc.key.split(".")[0].split("[")[0] in INSPECTION_KEYS
+        raise ScenarioError(exc.detail, exc.key, os.fspath(objectives) if mine else source) from None
 
 
 # --------------------------------------------------------------------------------------------
@@ -405,6 +448,10 @@ def scenario_from_dict(
 
     dynamics, _ = dynamics_from_tables(f, world)
     check_names(dynamics, world)
+    from staghunt.scenario.inspection import inspection_from_tables
+
+    vehicle = VehicleLimits(**f.vehicle.model_dump())
+    inspection = inspection_from_tables(f, team, world, origin, base_dir, costs.min_clearance, vehicle.max_speed)
     return Scenario(
         name=scenario_name,
         description=f.description,
@@ -414,6 +461,7 @@ def scenario_from_dict(
         costs=costs,
         solver=SolverSettings(**f.solver.model_dump()),
         origin=origin,
-        vehicle=VehicleLimits(**f.vehicle.model_dump()),
+        vehicle=vehicle,
         dynamics=dynamics,
+        inspection=inspection,
     )

@@ -8,6 +8,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from staghunt.task import UAV, Formation, VehicleLimits
+from staghunt.task.objectives import Inspection
 from staghunt.world import GeoOrigin, World
 from staghunt.world.dynamic import Dynamics
 
@@ -70,7 +71,8 @@ class Scenario:
     ``origin``: the geodetic origin of the site frame (``None``: the scenario is not
     geo-referenced; exports then need one given explicitly). ``vehicle``: the team's flight
     limits. ``dynamics``: what changes in flight (moving obstacles, events, sensing; empty for a
-    frozen site), used by ``fly``."""
+    frozen site), used by ``fly``. ``inspection``: the cameras the UAVs carry and the objectives
+    to capture (``None``: no camera given), used by ``inspect``, ``plan``, ``fly`` and ``export``."""
 
     name: str
     description: str
@@ -82,6 +84,7 @@ class Scenario:
     origin: GeoOrigin | None = None
     vehicle: VehicleLimits = VehicleLimits()
     dynamics: Dynamics = Dynamics()
+    inspection: Inspection | None = None
 
     @property
     def n_uavs(self) -> int:

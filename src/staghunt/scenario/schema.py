@@ -22,6 +22,14 @@ from pydantic import ConfigDict, Field, model_validator
 
 from staghunt.scenario.errors import fmt as _fmt
 from staghunt.scenario.model import CostParams, SolverSettings
+from staghunt.scenario.schema_inspection import (
+    CameraRef,
+    InspectionTable,
+    ObjectivesFile,
+    ObjectiveTable,
+    PayloadKeys,
+    PayloadTable,
+)
 from staghunt.scenario.schema_base import (  # noqa: F401  (re-exported: the format's value types)
     BaseHeight, Matrix, NonNegative, Number, Polygon, Solid, Table, TopHeight, XYH, fail,
 )
@@ -30,7 +38,7 @@ from staghunt.scenario.schema_dynamic import (  # noqa: F401  (re-exported: part
 )
 from staghunt.task import VehicleLimits
 
-__all__ = ["EventsFile", "ScenarioFile", "json_schema"]
+__all__ = ["EventsFile", "ObjectivesFile", "ScenarioFile", "json_schema"]
 
 
 # --------------------------------------------------------------------------------------------
@@ -155,7 +163,7 @@ class Airspace(Table):
         "(m above the origin's altitude)")
 
 
-class Fleet(Table):
+class Fleet(PayloadKeys):
     """A team generated from a formation template (replaces [[team]])."""
 
     count: Annotated[int, Field(ge=1, le=64)]
@@ -183,7 +191,7 @@ class Fleet(Table):
         return self
 
 
-class Uav(Table):
+class Uav(PayloadKeys):
     """One UAV of the team."""
 
     name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="default UAV<i> (1-based)")
@@ -289,6 +297,11 @@ class ScenarioFile(Table):
     jibs: list[JibTable] = []
     events: list[EventTable] = []
     sensing: Optional[SensingTable] = None
+    camera: Optional[CameraRef] = Field(None, description="the team's camera: a name of the shipped table or a "
+                                        "table of its geometry")
+    payload: Optional[PayloadTable] = Field(None, description="the team's default gimbal pitch range and endurance")
+    inspection: Optional[InspectionTable] = None
+    objectives: list[ObjectiveTable] = []
 
     @model_validator(mode="after")
     def _team_or_fleet(self) -> "ScenarioFile":

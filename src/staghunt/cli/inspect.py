@@ -1,0 +1,229 @@
+"""``staghunt cameras``, ``staghunt inspect`` and the inspection path of ``staghunt plan``:
+parse, call :mod:`staghunt.inspection`, write, report.
+
+Exit codes: ``0`` planned (``inspect``: allocated); ``3`` the inspection was planned but a leg is
+infeasible, a window is missed or the team is unsafe in time (``inspection.json`` still written);
+``2`` bad input (objectives, cameras, endurance too short for any allocation), nothing written.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from staghunt.cli.common import (
+    EXIT_NEGATIVE, EXIT_OK, PROG, add_plots_option, add_quiet_option, add_scenario_argument, add_seed_option,
+    check_out_dir, command, os_reason, path_argument, safe_name, say,
+)
+from staghunt.inputs import clip
+
+
+def add_objectives_option(p: argparse.ArgumentParser) -> None:
+    """``--objectives FILE``: an objectives file whose tables replace the scenario's."""
+    p.add_argument("--objectives", metavar="FILE", type=path_argument,
+                   help="objectives file (TOML: [camera] or camera = NAME, [payload], [inspection], [[objectives]]): "
+                   "the inspection to plan; its tables replace the scenario's")
+
+
+def add_allocation_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--allocation", choices=["ortools", "greedy"], default="ortools",
+                   help="ortools (default): OR-Tools routing, bisection on the makespan; greedy: cheapest insertion")
+
+
+def add_commands(sub: Any) -> None:
+    command(sub, "cameras", cmd_cameras)
+    p = command(sub, "inspect", cmd_inspect, {EXIT_OK: "every required objective allocated"})
+    add_scenario_argument(p)
+    add_objectives_option(p)
+    add_allocation_option(p)
+    add_seed_option(p)
+    p.add_argument("--out", metavar="DIR", type=path_argument, help="also write DIR/allocation.json and, unless "
+                   "--no-plots, DIR/inspection.png")
+    add_plots_option(p)
+    add_quiet_option(p)
+
+
+def cmd_cameras(args: argparse.Namespace) -> int:
+    """list the shipped cameras (QGroundControl CameraMetaData fields, with sources)"""
+    from staghunt.camera import camera_table
+
+    rows = [("camera", "sensor mm", "image px", "focal mm", "min interval s", "GSD at 50 m cm/px")]
+    for c in camera_table().values():
+        rows.append((c.name, f"{c.sensor_width_mm:g} x {c.sensor_height_mm:g}", f"{c.image_width_px} x {c.image_height_px}",
+                     f"{c.focal_length_mm:g}", f"{c.min_trigger_interval_s:g}", f"{c.gsd_cm(50.0):.3g}"))
+    print(_table(rows))
+    for c in camera_table().values():
+        print(f"- {c.name}: {c.source}")
+    return EXIT_OK
+
+
+def load_inspection_scenario(source: str, objectives: str | None) -> Any:
+    """The scenario with its objectives (an objectives file's replacing them); ``ValueError``
+    naming the input when there is none to plan."""
+    from staghunt.scenario import load_scenario
+
+    scenario = load_scenario(source, objectives=objectives)
+    if scenario.inspection is None or not scenario.inspection.objectives:
+        raise ValueError(f"{source}: no objectives to inspect (give --objectives FILE, or [[objectives]] and a camera "
+                         "in the scenario)")
+    return scenario
+
+
+def cmd_inspect(args: argparse.Namespace) -> int:
+    """show the objectives, capture plans and allocation of an inspection, before anything flies
+
+    Plan every objective's captures with its camera (survey lines, facade layers, viewpoints; what
+    had to move to be safe, what cannot be reached), split them into tasks and allocate them to the
+    UAVs for the makespan within their endurance and the time windows (OR-Tools, with the greedy
+    baseline beside it and a lower bound). No leg is planned and nothing flies: 'staghunt plan' with
+    the same objectives plans the legs with the game, times and checks the team.
+    """
+    from staghunt.acquisition.plan import plan_captures
+    from staghunt.inspection.allocation import Problem, solve
+    from staghunt.inspection.planner import SLACK, fleet_of
+    from staghunt.inspection.tasks import make_tasks
+
+    scenario = load_inspection_scenario(args.scenario, args.objectives)
+    if args.out is not None:
+        check_out_dir(Path(args.out), "allocation.json")
+    insp = scenario.inspection
+    captures = plan_captures(scenario, insp)
+    tasks = make_tasks(insp, captures)
+    problem = Problem(tuple(tasks), fleet_of(scenario, insp), slack=SLACK)
+    greedy = solve(problem, "greedy")
+    alloc = greedy if args.allocation == "greedy" else solve(problem, args.allocation)
+    print(objectives_table(captures))
+    for o in captures.objectives:
+        for note in o.moved:
+            print(f"  moved: {o.name}: {note}")
+        for note in o.unreached:
+            print(f"  UNREACHED: {o.name}: {note}")
+    print(allocation_table(alloc, greedy, tasks, problem.fleet.names))
+    if args.out is not None:
+        out = Path(args.out)
+        try:
+            out.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"cannot create output directory {str(out)!r}: {os_reason(exc)}") from None
+        from staghunt.inspection.files import allocation_dict
+        from staghunt.io.result_json import write_json_atomic
+
+        path = write_json_atomic(allocation_dict(scenario, captures, tasks, alloc, greedy), out / "allocation.json")
+        print(f"wrote {path}")
+        if not args.no_plots:
+            figure = _figure(lambda: __import__("staghunt.plots.inspection", fromlist=["x"]).allocation_figure(
+                scenario, captures, tasks, alloc, out / "inspection.png"))
+            if figure:
+                print(f"wrote {figure}")
+    if not alloc.ok:
+        raise ValueError(alloc.message)
+    return EXIT_OK
+
+
+def _figure(draw: Any) -> Path | None:
+    try:
+        return draw()
+    except KeyboardInterrupt:
+        raise
+    except Exception as exc:  # a plotting bug is not the user's input
+        say(f"{PROG}: warning: figure not written: {clip(str(exc))}")
+        return None
+
+
+def run_inspection_plan(scenario: Any, args: argparse.Namespace, certify: Any) -> int:
+    """``staghunt plan`` of a scenario with objectives: plan the inspection, write
+    ``DIR/inspection.json`` and its figures, report."""
+    from staghunt.inspection.files import write_inspection
+    from staghunt.inspection.planner import InspectConfig, plan_inspection
+
+    out = Path(args.out) if args.out is not None else Path("runs") / f"{safe_name(scenario.name)}-inspection-s{args.seed}"
+    check_out_dir(out, "inspection.json")
+    settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations, waypoints=args.waypoints,
+                                     starts=args.starts)
+    config = InspectConfig(allocation=getattr(args, "allocation", "ortools"), leg_settings=settings, certify=certify,
+                           engine=args.engine or "auto")
+    plan = plan_inspection(scenario, scenario.inspection, config, seed=args.seed)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create output directory {str(out)!r}: {os_reason(exc)}") from None
+    path = write_inspection(plan, out / "inspection.json")
+    figures = [] if args.no_plots else [f for f in (
+        _figure(lambda: __import__("staghunt.plots.inspection", fromlist=["x"]).plan_figure(plan, out / "inspection.png")),
+        _figure(lambda: __import__("staghunt.plots.inspection", fromlist=["x"]).coverage_figure(
+            plan.scenario, plan.inspection, plan.photos(), out / "coverage.png", "planned"))) if f]
+    if not args.quiet:
+        print(objectives_table(plan.captures))
+        print(allocation_table(plan.allocation, plan.baseline, list(plan.tasks), plan.timeline.names))
+        if plan.outbound is not None and plan.outbound.certificate is not None:
+            print(f"outbound leg (the team's game to the first captures): {plan.outbound.certificate.verdict}")
+        print(coverage_table(plan.coverage))
+        t = plan.times
+        print("time: " + ", ".join(f"{k[:-2]} {v:.1f} s" for k, v in t.items()))
+    print(f"status: {plan.message}")
+    print(f"wrote {path}")
+    for f in figures:
+        print(f"wrote {f}")
+    return EXIT_OK if plan.status.value == "planned" else EXIT_NEGATIVE
+
+
+# ------------------------------------------------------------------------------------------------
+# Tables
+# ------------------------------------------------------------------------------------------------
+
+
+def _table(rows: list[tuple[str, ...]]) -> str:
+    widths = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    return "\n".join("  ".join([r[0].ljust(widths[0])] + [v.rjust(w) for v, w in zip(r[1:], widths[1:])]).rstrip()
+                     for r in rows)
+
+
+def objectives_table(captures: Any) -> str:
+    """Per objective: kind, planned GSD and distance, segments, photos (and QGroundControl's for an
+    area), capture time, moved and unreached counts."""
+    rows = [("objective", "kind", "GSD cm/px", "distance m", "segments", "photos", "QGC photos", "work s", "moved",
+             "unreached")]
+    for o in captures.objectives:
+        rows.append((o.name, o.kind, f"{o.gsd_cm:.3g}", f"{o.distance_m:.1f}", str(len(o.segments)), str(o.photos),
+                     "-" if o.qgc_photos is None else str(o.qgc_photos), f"{o.work_s:.0f}", str(len(o.moved)),
+                     str(len(o.unreached))))
+    return _table(rows)
+
+
+def allocation_table(alloc: Any, greedy: Any, tasks: list[Any], names: tuple[str, ...]) -> str:
+    """Per UAV: its tasks (by objective), work, transit, waiting and end; the makespan against the
+    lower bound and the greedy baseline."""
+    rows = [("UAV", "tasks", "objectives", "work s", "transit s", "wait s", "end s")]
+    for r in alloc.routes:
+        objs = sorted({tasks[v.task].objective for v in r.visits})
+        rows.append((names[r.uav], str(len(r.visits)), ", ".join(objs) or "-", f"{r.work:.0f}", f"{r.transit:.0f}",
+                     f"{r.wait:.0f}", f"{r.end:.0f}"))
+    ratio = alloc.makespan / alloc.lower_bound if alloc.lower_bound > 0 else float("nan")
+    text = _table(rows)
+    text += (f"\nallocation ({alloc.method}): makespan {alloc.makespan:.0f} s, lower bound {alloc.lower_bound:.0f} s "
+             f"(ratio {ratio:.3f}); greedy baseline {greedy.makespan:.0f} s; {alloc.solve_time_s:.2f} s")
+    if alloc.dropped:
+        text += f"\nleft out (optional): {', '.join(sorted({tasks[i].objective for i in alloc.dropped}))}"
+    return text
+
+
+def coverage_table(coverage: Any) -> str:
+    """Per objective: the share of cells or patches at the target GSD, with five images or more,
+    images per element, overlaps reached and blur."""
+    rows = [("objective", "kind", "at target GSD", ">= 5 images", "images (median)", "front overlap", "side overlap",
+             "blur px (max)")]
+    for c in coverage:
+        if c["kind"] == "point":
+            rows.append((c["objective"], "point", f"{c['visits_done']}/{c['visits']} visits", "-", "-", "-", "-", "-"))
+            continue
+
+        def share(d: dict) -> str:
+            return "-" if d["reached_share"] is None else f"{d['reached_share']:.1%}"
+
+        rows.append((c["objective"], c["kind"], f"{c['target_share']:.1%}",
+                     f"{c['min_images_share']:.1%}" if c["kind"] == "area" else "-",
+                     f"{c['images_per_element']['median']:.0f}" if c["images_per_element"]["median"] is not None else "-",
+                     share(c["front_overlap"]), share(c["side_overlap"]),
+                     "-" if c["blur_px"]["max"] is None else f"{c['blur_px']['max']:.2f}"))
+    return _table(rows)
