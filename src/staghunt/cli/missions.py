@@ -64,8 +64,12 @@ def add_commands(sub: Any) -> None:
         EXIT_OK: "written",
         EXIT_NEGATIVE: "refused (infeasible plan, or unsafe in time or in the simulated flight; --force writes it "
         "marked unsafe)"})
-    p.add_argument("result", metavar="RESULT.json", help="a result.json written by 'staghunt plan'")
+    p.add_argument("result", metavar="RESULT.json|INSPECTION.json",
+                   help="a result.json or an inspection.json written by 'staghunt plan'")
     add_out_option(p)
+    from staghunt.cli.inspect import add_objectives_option
+
+    add_objectives_option(p)
     p.add_argument("--origin", type=_origin, metavar="LAT,LON,ALT",
                    help="geodetic origin of the site frame's (0, 0, 0): degrees, degrees, metres AMSL "
                    "(default: the scenario's [origin]); e.g. --origin -33.8837,151.2006,30")
@@ -84,6 +88,34 @@ def add_commands(sub: Any) -> None:
                    "flight that breaks a limit is refused like an unsafe plan (exit 3 unless --force)")
 
 
+def _inspection_source(args: argparse.Namespace) -> tuple[str | None, Any]:
+    """``(the inspection.json to export, or None; the file's data)``: the file itself, or
+    (``--objectives``) the inspection planned for the result's scenario with those objectives,
+    written to ``DIR/inspection.json`` first. The file is read once (a FIFO works)."""
+    from pathlib import Path
+
+    from staghunt.io.result_json import load_json_strict
+
+    data = load_json_strict(args.result)
+    if isinstance(data, dict) and data.get("format") == "staghunt-inspection":
+        if args.objectives is not None:
+            raise ValueError(f"{args.result} is an inspection already; --objectives is for a result.json")
+        return args.result, data
+    if args.objectives is None:
+        return None, data
+    from staghunt.inspection.files import write_inspection
+    from staghunt.inspection.planner import plan_inspection
+    from staghunt.scenario.loader import with_objectives
+
+    if not isinstance(data, dict) or not isinstance(data.get("scenario"), dict):
+        raise ValueError(f"{args.result}: not a staghunt result file (no scenario)")
+    scenario = with_objectives(data["scenario"], args.objectives, name="inspection", base_dir=None, source=args.result)
+    plan = plan_inspection(scenario, scenario.inspection, seed=int(data.get("seed", 0) or 0))
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    return str(write_inspection(plan, out / "inspection.json")), data
+
+
 def cmd_export(args: argparse.Namespace) -> int:
     """mission files of a plan for ground stations (QGC, ArduPilot, DJI, Litchi)
 
@@ -92,9 +124,31 @@ def cmd_export(args: argparse.Namespace) -> int:
     uav{n}.plan (QGroundControl), uav{n}.waypoints (QGC WPL 110), uav{n}.kmz (DJI WPML),
     uav{n}.litchi.csv (Litchi), mission.kml, mission.geojson, trajectories.csv, mission.json
     (timing, datums, minima), speed.png and separation.png. docs/missions.md says how to load each.
+    An inspection (INSPECTION.json, or RESULT.json with --objectives FILE) exports every UAV's own
+    mission with its camera actions: gimbal pitch, heading, distance triggering, photos at
+    viewpoints; with --simulate also captures.csv and coverage.json of the simulated flight.
     """
     from staghunt.missions import export_result
     from staghunt.missions.export import ExportRefused
+
+    source, data = _inspection_source(args)
+    if source is not None:
+        from staghunt.missions.inspection import export_inspection
+
+        try:
+            summary = export_inspection(source, args.out, origin=args.origin, formats=args.formats, force=args.force,
+                                        plots=not args.no_plots, altitude_frame=args.altitude_frame,
+                                        simulate=args.simulate, data=data if source == args.result else None)
+        except ExportRefused as exc:
+            error(one_line(exc, "export"))
+            return EXIT_NEGATIVE
+        if "flight" in summary:
+            from staghunt.cli.inspect import flight_report
+
+            print(flight_report(summary["flight"]))
+        print(f"inspection mission: makespan {summary['makespan_s']:.0f} s; camera actions in every UAV's mission; "
+              f"altitudes {args.altitude_frame}; wrote {len(summary['files'])} files to {args.out}")
+        return EXIT_OK
 
     def progress(t: float, t_end: float) -> None:
         if sys.stderr.isatty():
@@ -102,7 +156,10 @@ def cmd_export(args: argparse.Namespace) -> int:
             sys.stderr.flush()
 
     try:
+        from staghunt.io.result_json import result_from_data
+
         report = export_result(args.result, args.out, origin=args.origin, formats=args.formats,
+                               data=result_from_data(data, args.result),
                                force=args.force, plots=not args.no_plots, simulate=args.simulate,
                                progress=progress, altitude_frame=args.altitude_frame)
     except ExportRefused as exc:

@@ -225,71 +225,78 @@ class Flight:
     seed: int
     tasks: list[Task]
 
-    def build(self, alloc: Allocation) -> tuple[Timeline, PlanResult | None, list[tuple[int, PlanResult]], list[str]]:
+    def build(self, alloc: Allocation, fleet: Fleet | None = None, head: list[list[Piece]] | None = None,
+              after: float | None = None) -> tuple[Timeline, PlanResult | None, list[tuple[int, PlanResult]], list[str]]:
+        """Every UAV's timeline for ``alloc``. At take-off (``head`` ``None``): the team's game to the
+        first captures, then each UAV's work and its way home. In flight (a re-allocation):
+        ``head[k]`` is what UAV ``k`` keeps of its old timeline (up to ``fleet.ready[k]``, at
+        ``fleet.starts[k]``); every active UAV then flies alone to its tasks and home; the team is
+        deconflicted from ``after`` on."""
         scenario, tasks = self.scenario, self.tasks
         limits = scenario.vehicle
         settings = self.config.leg_settings or scenario.solver
-        fleet = fleet_of(scenario, self.inspection)
+        fleet = fleet if fleet is not None else fleet_of(scenario, self.inspection)
         plans = [alloc.tasks_of(k) for k in range(scenario.n_uavs)]
-        flying = [k for k in range(scenario.n_uavs) if plans[k]]
-        problems: list[str] = []
-        pieces: list[list[Piece]] = [[] for _ in range(scenario.n_uavs)]
+        if head is None:
+            flying = [k for k in range(scenario.n_uavs) if plans[k]]
+        else:
+            flying = [k for k in range(scenario.n_uavs) if fleet.active[k]]
+        self.problems: list[str] = []
+        self.solo: list[tuple[int, PlanResult]] = []
+        pieces: list[list[Piece]] = [list(head[k]) for k in range(scenario.n_uavs)] if head is not None else \
+            [[] for _ in range(scenario.n_uavs)]
         outbound = None
-        solo: list[tuple[int, PlanResult]] = []
-        if flying:
+        if head is None and flying:
             firsts = np.array([tasks[plans[k][0][0]].ways[plans[k][0][1]].entry for k in flying])
             outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", settings, self.seed,
                                 self.config.engine, self.config.certify)
             if not outbound.feasible:
-                problems.append(f"outbound leg: {outbound.message}")
+                self.problems.append(f"outbound leg: {outbound.message}")
             for i, p in zip(flying, team_pieces(0.0, np.asarray(outbound.paths), limits, "outbound")):
                 pieces[i].append(p)
         for k in flying:
-            here = pieces[k][-1].points[-1]
+            here = pieces[k][-1].points[-1] if head is None else fleet.starts[k]
+            t0 = pieces[k][-1].t1 if head is None else float(fleet.ready[k])
             for j, (ti, wi) in enumerate(plans[k]):
                 task, way = tasks[ti], tasks[ti].ways[wi]
-                t0 = pieces[k][-1].t1
-                if j > 0:
-                    pts, leg = solo_leg(scenario, k, here, way.entry, self.config.solo_settings,
-                                        self.seed + 1000 * (k + 1) + j, self.config.engine)
-                    if leg is not None:
-                        solo.append((k, leg))
-                        if not leg.feasible:
-                            problems.append(f"{fleet.names[k]} leg to task {ti}: {leg.message}")
-                    if len(pts) > 1 and float(np.linalg.norm(pts[-1] - pts[0])) > 1e-6:
-                        pieces[k].append(path_piece("leg", t0, pts, limits, label=f"to task {ti}"))
-                        t0 = pieces[k][-1].t1
+                if j > 0 or head is not None:
+                    t0 = self._leg(pieces[k], k, here, way.entry, t0, f"to task {ti}", j)
                 if task.window is not None and t0 < task.window[0]:
                     pieces[k].append(hover_piece(t0, task.window[0], way.entry, label=f"waits for the window of task {ti}"))
                     t0 = task.window[0]
                 pieces[k].append(capture_piece(t0, way.segment, limits, ti))
-                here = way.exit
-        for k in flying:  # home on its own as soon as its work is done
-            here = pieces[k][-1].points[-1]
-            pts, leg = solo_leg(scenario, k, here, fleet.goals[k], self.config.solo_settings,
-                                self.seed + 1000 * (k + 1) + 999, self.config.engine)
-            if leg is not None:
-                solo.append((k, leg))
-                if not leg.feasible:
-                    problems.append(f"{fleet.names[k]} leg home: {leg.message}")
-            pieces[k].append(path_piece("leg", pieces[k][-1].t1, pts, limits, label="home"))
-        start_work = pieces[flying[0]][0].t1 if flying else 0.0
+                here, t0 = way.exit, pieces[k][-1].t1
+            self._leg(pieces[k], k, here, fleet.goals[k], t0, "home", 999)  # home as soon as its work is done
+        start_work = after if after is not None else (pieces[flying[0]][0].t1 if flying else 0.0)
         self._deconflict(pieces, start_work)
         for k in flying:
             for p in pieces[k]:
-                task = tasks[p.task] if p.task is not None else None
-                if task is not None and task.window is not None and p.t1 > task.window[1] + 1e-6:
-                    problems.append(f"{fleet.names[k]} flies task {p.task} ({task.objective}) until {p.t1:.0f} s, "
-                                    f"past its window's end {task.window[1]:.0f} s")
+                task = tasks[p.task] if p.task is not None and p.task < len(tasks) else None
+                if task is not None and task.window is not None and p.t1 > task.window[1] + 1e-6 and p.t0 >= start_work:
+                    self.problems.append(f"{fleet.names[k]} flies task {p.task} ({task.objective}) until {p.t1:.0f} s, "
+                                         f"past its window's end {task.window[1]:.0f} s")
         for k in range(scenario.n_uavs):
             if not pieces[k]:  # no work: stays at its start
                 pieces[k].append(hover_piece(0.0, 0.0, fleet.starts[k], label="no task"))
         for k in flying:
-            used = pieces[k][-1].t1
+            used = pieces[k][-1].t1 - float(fleet.ready[k])
             if used > fleet.endurance[k] + 1e-6:
-                problems.append(f"{fleet.names[k]} flies {used:.0f} s, its endurance is {fleet.endurance[k]:.0f} s")
+                self.problems.append(f"{fleet.names[k]} flies {used:.0f} s, it has {fleet.endurance[k]:.0f} s of endurance")
         timeline = Timeline(tuple(tuple(p) for p in pieces), fleet.names)
-        return timeline, outbound, solo, problems
+        return timeline, outbound, self.solo, self.problems
+
+    def _leg(self, pieces: list[Piece], k: int, a: np.ndarray, b: np.ndarray, t0: float, label: str, j: int) -> float:
+        """UAV ``k``'s own leg from ``a`` to ``b`` from ``t0`` appended to ``pieces``; its end time."""
+        pts, leg = solo_leg(self.scenario, k, a, b, self.config.solo_settings, self.seed + 1000 * (k + 1) + j,
+                            self.config.engine)
+        if leg is not None:
+            self.solo.append((k, leg))
+            if not leg.feasible:
+                self.problems.append(f"{self.scenario.team[k].name} leg {label}: {leg.message}")
+        if len(pts) > 1 and float(np.linalg.norm(pts[-1] - pts[0])) > 1e-6:
+            pieces.append(path_piece("leg", t0, pts, self.scenario.vehicle, label=label))
+            return pieces[-1].t1
+        return t0
 
     def _deconflict(self, pieces: list[list[Piece]], after: float, step: float = 0.2, rounds: int = 40) -> None:
         """Make the later of two UAVs that would come too close while at work (after ``after``,

@@ -10,6 +10,7 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from staghunt.missions.camera import CameraAction
 from staghunt.missions.targets import DJI_HEIGHT_MODE, DJI_SPEED_RANGE, check_frame
 
 __all__ = ["DJI_NS", "dji_kmz", "dji_speeds"]
@@ -41,15 +42,93 @@ def dji_speeds(speeds: np.ndarray) -> np.ndarray:
     return np.maximum(np.append(speeds, speeds[-1]), DJI_SPEED_RANGE[0])
 
 
+def _heading(a: CameraAction | None) -> str:
+    if a is None or a.heading_deg is None:
+        return ("<wpml:waypointHeadingParam><wpml:waypointHeadingMode>followWayline"
+                "</wpml:waypointHeadingMode></wpml:waypointHeadingParam>")
+    angle = (float(a.heading_deg) + 180.0) % 360.0 - 180.0  # DJI: -180..180, 0 = north, clockwise
+    return ("<wpml:waypointHeadingParam><wpml:waypointHeadingMode>smoothTransition</wpml:waypointHeadingMode>"
+            f"<wpml:waypointHeadingAngle>{angle:.1f}</wpml:waypointHeadingAngle>"
+            "<wpml:waypointPoiPoint>0.000000,0.000000,0.000000</wpml:waypointPoiPoint>"
+            "<wpml:waypointHeadingPathMode>followBadArc</wpml:waypointHeadingPathMode></wpml:waypointHeadingParam>")
+
+
+def _action(i: int, func: str, params: str) -> str:
+    return (f"<wpml:action><wpml:actionId>{i}</wpml:actionId><wpml:actionActuatorFunc>{func}</wpml:actionActuatorFunc>"
+            f"<wpml:actionActuatorFuncParam>{params}</wpml:actionActuatorFuncParam></wpml:action>")
+
+
+def _groups(k: int, a: CameraAction | None, capture_end: dict[int, int], next_id: list[int]) -> str:
+    """The action groups that start at waypoint ``k``: on reaching it (gimbal, hover, photo), and
+    a capture's distance-triggered photos from it to ``capture_end[k]``."""
+    if a is None:
+        return ""
+    out, acts = [], []
+    if a.gimbal_pitch_deg is not None:
+        acts.append(("gimbalRotate", "<wpml:gimbalHeadingYawBase>aircraft</wpml:gimbalHeadingYawBase>"
+                     "<wpml:gimbalRotateMode>absoluteAngle</wpml:gimbalRotateMode>"
+                     "<wpml:gimbalPitchRotateEnable>1</wpml:gimbalPitchRotateEnable>"
+                     f"<wpml:gimbalPitchRotateAngle>{a.gimbal_pitch_deg:.1f}</wpml:gimbalPitchRotateAngle>"
+                     "<wpml:gimbalRollRotateEnable>0</wpml:gimbalRollRotateEnable>"
+                     "<wpml:gimbalRollRotateAngle>0</wpml:gimbalRollRotateAngle>"
+                     "<wpml:gimbalYawRotateEnable>0</wpml:gimbalYawRotateEnable>"
+                     "<wpml:gimbalYawRotateAngle>0</wpml:gimbalYawRotateAngle>"
+                     "<wpml:gimbalRotateTimeEnable>0</wpml:gimbalRotateTimeEnable>"
+                     "<wpml:gimbalRotateTime>0</wpml:gimbalRotateTime>"
+                     "<wpml:payloadPositionIndex>0</wpml:payloadPositionIndex>"))
+    if a.hold_s > 0:
+        acts.append(("hover", f"<wpml:hoverTime>{a.hold_s:.1f}</wpml:hoverTime>"))
+    if a.photo:
+        acts.append(("takePhoto", "<wpml:payloadPositionIndex>0</wpml:payloadPositionIndex>"
+                     "<wpml:useGlobalPayloadLensIndex>1</wpml:useGlobalPayloadLensIndex>"))
+
+    def group(trigger: str, end: int, actions: list[tuple[str, str]]) -> str:
+        gid = next_id[0]
+        next_id[0] += 1
+        body = "".join(_action(i, f, p) for i, (f, p) in enumerate(actions))
+        return (f"<wpml:actionGroup><wpml:actionGroupId>{gid}</wpml:actionGroupId>"
+                f"<wpml:actionGroupStartIndex>{k}</wpml:actionGroupStartIndex>"
+                f"<wpml:actionGroupEndIndex>{end}</wpml:actionGroupEndIndex>"
+                f"<wpml:actionGroupMode>sequence</wpml:actionGroupMode><wpml:actionTrigger>{trigger}"
+                f"</wpml:actionTrigger>{body}</wpml:actionGroup>")
+
+    if acts:
+        out.append(group("<wpml:actionTriggerType>reachPoint</wpml:actionTriggerType>", k, acts))
+    if a.start_distance_m is not None:
+        out.append(group("<wpml:actionTriggerType>multipleDistance</wpml:actionTriggerType>"
+                         f"<wpml:actionTriggerParam>{a.start_distance_m:.2f}</wpml:actionTriggerParam>",
+                         capture_end.get(k, k), [("takePhoto", "<wpml:payloadPositionIndex>0</wpml:payloadPositionIndex>"
+                                                  "<wpml:useGlobalPayloadLensIndex>1</wpml:useGlobalPayloadLensIndex>")]))
+    return "".join(out)
+
+
+def capture_ends(actions: list[CameraAction] | None) -> dict[int, int]:
+    """``{waypoint that starts a distance-triggered capture: the waypoint that stops it}``."""
+    if actions is None:
+        return {}
+    out, start = {}, None
+    for k, a in enumerate(actions):
+        if a.stop and start is not None:
+            out[start] = k
+            start = None
+        if a.start_distance_m is not None:
+            start = k
+    if start is not None:
+        out[start] = len(actions) - 1
+    return out
+
+
 def dji_kmz(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, cruise: float, name: str,
-            ell: np.ndarray | None = None, home_ell: float | None = None, frame: str = "relative") -> bytes:
+            ell: np.ndarray | None = None, home_ell: float | None = None, frame: str = "relative",
+            actions: list[CameraAction] | None = None) -> bytes:
     """DJI WPML mission (``.kmz``: ``wpmz/template.kml`` and ``wpmz/waylines.wpml``).
 
     ``ell`` ``(M,)``: WGS84 ellipsoid heights of ``geo``, ``home_ell`` the takeoff point's: DJI
     reads ``wpml:ellipsoidHeight`` and ``takeOffRefPoint``'s height as ellipsoid heights in every
     mode. ``frame`` ``relative``: heights ``relativeToStartPoint``; ``amsl``: template heights
     ``EGM96`` (AMSL), executed as ``WGS84`` ellipsoid heights. Waypoint speeds below 1 m/s are
-    raised to 1 m/s."""
+    raised to 1 m/s. ``actions`` ``(M,)``: the waypoints' camera and gimbal
+    (:mod:`staghunt.missions.camera`), as action groups and headings in both files."""
     if frame not in DJI_HEIGHT_MODE:
         check_frame("kmz", frame)
     if ell is None or home_ell is None:
@@ -62,15 +141,17 @@ def dji_kmz(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, cruise: float
     auto = float(np.clip(cruise, *DJI_SPEED_RANGE))
     config = _dji_config(home, float(home_ell), auto)
     tpl_marks, wl_marks = [], []
+    ends, next_id = capture_ends(actions), [0]
     for k in range(len(geo)):
+        a = actions[k] if actions is not None else None
         point = f"<Point><coordinates>{geo[k, 1]:.8f},{geo[k, 0]:.8f}</coordinates></Point>"
         common = (f"<wpml:index>{k}</wpml:index>"
                   f"<wpml:waypointSpeed>{spd[k]:.2f}</wpml:waypointSpeed>"
-                  "<wpml:waypointHeadingParam><wpml:waypointHeadingMode>followWayline"
-                  "</wpml:waypointHeadingMode></wpml:waypointHeadingParam>"
+                  f"{_heading(a)}"
                   "<wpml:waypointTurnParam><wpml:waypointTurnMode>toPointAndStopWithDiscontinuityCurvature"
                   "</wpml:waypointTurnMode><wpml:waypointTurnDampingDist>0</wpml:waypointTurnDampingDist>"
-                  "</wpml:waypointTurnParam><wpml:useStraightLine>1</wpml:useStraightLine>")
+                  "</wpml:waypointTurnParam><wpml:useStraightLine>1</wpml:useStraightLine>"
+                  + _groups(k, a, ends, next_id))
         tpl_marks.append(f"<Placemark>{point}{common}<wpml:height>{height[k]:.3f}</wpml:height>"
                          f"<wpml:ellipsoidHeight>{ell[k]:.3f}</wpml:ellipsoidHeight>"
                          "<wpml:useGlobalHeight>0</wpml:useGlobalHeight>"

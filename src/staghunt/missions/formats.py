@@ -35,6 +35,10 @@ from xml.sax.saxutils import escape
 
 import numpy as np
 
+from staghunt.missions.camera import (
+    MAV_CMD_DO_MOUNT_CONTROL, MAV_CMD_DO_SET_CAM_TRIGG_DIST, MAV_CMD_IMAGE_START_CAPTURE, MAV_MOUNT_MODE_MAVLINK_TARGETING,
+    CameraAction,
+)
 from staghunt.missions.dji import DJI_NS, dji_kmz, dji_speeds  # noqa: F401  (re-exported: one of the formats)
 from staghunt.missions.targets import (  # noqa: F401  (re-exported: frames and limits of the targets)
     ALTITUDE_FRAMES, DJI_HEIGHT_MODE, DJI_SPEED_RANGE, FRAME_GLOBAL, FRAME_MISSING, FRAME_RELATIVE, FRAME_SUPPORT,
@@ -62,30 +66,62 @@ def _qgc_item(seq: int, command: int, frame: int, params: list[Any]) -> dict[str
 
 
 def mission_items(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.ndarray,
-                  frame: str = "relative") -> list[tuple[int, int, list[float]]]:
+                  frame: str = "relative", actions: list[CameraAction] | None = None
+                  ) -> list[tuple[int, int, list[float]]]:
     """``(command, MAV_FRAME, 7 params)``: take off to the start, then per leg a speed command and
     the leg's end point (altitudes in ``frame``), in flight order. The takeoff item is relative
-    to home unless ``frame`` is ``amsl``."""
+    to home unless ``frame`` is ``amsl``. ``actions`` ``(M,)``: each waypoint's camera and gimbal
+    (:mod:`staghunt.missions.camera`): its heading and hover in the waypoint item, the gimbal's
+    pitch just before it, the camera's commands just after it."""
     alt = frame_altitudes(geo, home, ground, frame)
     f = MAV_FRAME[frame]
     t_frame, t_alt = (f, alt[0]) if frame != "terrain" else (FRAME_RELATIVE, geo[0, 2] - home[2])
+    acts = actions if actions is not None else [CameraAction()] * len(geo)
     items: list[tuple[int, int, list[float]]] = [
         (QGC_TAKEOFF, t_frame, [0.0, 0.0, 0.0, math.nan, geo[0, 0], geo[0, 1], t_alt])]
+
+    def before(a: CameraAction) -> None:
+        if a.gimbal_pitch_deg is not None:
+            items.append((MAV_CMD_DO_MOUNT_CONTROL, f, [float(a.gimbal_pitch_deg), 0.0, 0.0, 0.0, 0.0, 0.0,
+                                                        float(MAV_MOUNT_MODE_MAVLINK_TARGETING)]))
+
+    def after(a: CameraAction) -> None:
+        if a.stop:
+            items.append((MAV_CMD_DO_SET_CAM_TRIGG_DIST, f, [0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0]))
+        if a.start_distance_m is not None:
+            items.append((MAV_CMD_DO_SET_CAM_TRIGG_DIST, f, [float(a.start_distance_m), 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]))
+        if a.photo:
+            items.append((MAV_CMD_IMAGE_START_CAPTURE, f, [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]))
+
+    if actions is not None and (acts[0].hold_s or acts[0].heading_deg is not None):
+        items.append((QGC_WAYPOINT, f, [float(acts[0].hold_s), 0.0, 0.0, _heading(acts[0]), geo[0, 0], geo[0, 1],
+                                        alt[0]]))
+    before(acts[0])
+    after(acts[0])
     for k in range(1, len(geo)):
+        before(acts[k])
         items.append((QGC_CHANGE_SPEED, f, [1.0, float(speeds[k - 1]), -1.0, 0.0, 0.0, 0.0, 0.0]))
-        items.append((QGC_WAYPOINT, f, [0.0, 0.0, 0.0, math.nan, geo[k, 0], geo[k, 1], alt[k]]))
+        items.append((QGC_WAYPOINT, f, [float(acts[k].hold_s), 0.0, 0.0, _heading(acts[k]), geo[k, 0], geo[k, 1],
+                                        alt[k]]))
+        after(acts[k])
     return items
+
+
+def _heading(a: CameraAction) -> float:
+    return math.nan if a.heading_deg is None else float(a.heading_deg)
 
 
 _FRAME_MODE = {FRAME_RELATIVE: 1, FRAME_GLOBAL: 2, FRAME_TERRAIN: 4}
 
 
 def qgc_plan(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, cruise: float,
-             note: str = "", ground: np.ndarray | None = None, frame: str = "relative") -> str:
-    """QGroundControl plan (JSON, ``fileType`` Plan, version 1), altitudes in ``frame``."""
+             note: str = "", ground: np.ndarray | None = None, frame: str = "relative",
+             actions: list[CameraAction] | None = None) -> str:
+    """QGroundControl plan (JSON, ``fileType`` Plan, version 1), altitudes in ``frame``, with the
+    waypoints' camera ``actions`` (:func:`mission_items`)."""
     ground = geo[:, 2] if ground is None else ground
     items = []
-    for seq, (cmd, f, params) in enumerate(mission_items(geo, speeds, home, ground, frame), start=1):
+    for seq, (cmd, f, params) in enumerate(mission_items(geo, speeds, home, ground, frame, actions), start=1):
         p = [None if isinstance(v, float) and math.isnan(v) else float(v) for v in params]
         item = _qgc_item(seq, cmd, f, p)
         if cmd in (QGC_WAYPOINT, QGC_TAKEOFF):
@@ -115,9 +151,9 @@ def qgc_plan(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, cruise: floa
 
 
 def qgc_wpl(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.ndarray | None = None,
-            frame: str = "relative") -> str:
+            frame: str = "relative", actions: list[CameraAction] | None = None) -> str:
     """QGC WPL 110 text (ArduPilot / Mission Planner): line 0 home (absolute), then the items
-    (altitudes in ``frame``)."""
+    (altitudes in ``frame``, camera ``actions`` as :func:`mission_items` places them)."""
     ground = geo[:, 2] if ground is None else ground
     lines = ["QGC WPL 110"]
 
@@ -128,7 +164,7 @@ def qgc_wpl(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.nd
         return "\t".join(fields)
 
     lines.append(row(0, FRAME_GLOBAL, QGC_WAYPOINT, [0, 0, 0, 0, home[0], home[1], home[2]], current=1))
-    for seq, (cmd, f, params) in enumerate(mission_items(geo, speeds, home, ground, frame), start=1):
+    for seq, (cmd, f, params) in enumerate(mission_items(geo, speeds, home, ground, frame, actions), start=1):
         lines.append(row(seq, f, cmd, params))
     return "\n".join(lines) + "\n"
 
@@ -141,7 +177,7 @@ LITCHI_STAY_MAX_MS = 32000
 
 def litchi_rows(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.ndarray,
                 frame: str = "relative", durations: np.ndarray | None = None,
-                min_leg: float = TARGET_LIMITS["litchi"]["leg_m"][0]
+                min_leg: float = TARGET_LIMITS["litchi"]["leg_m"][0], actions: list[CameraAction] | None = None
                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """The waypoints as Litchi's CSV writes them for ``frame``: ``(index (W,), altitude (W,),
     speed (W,), hold_ms (W,))``.
@@ -160,7 +196,7 @@ def litchi_rows(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: n
     legs = np.linalg.norm(np.diff(_local_metres(geo), axis=0), axis=-1)  # (M - 1,)
     index, hold, leave = [0], [0.0], [0]
     for k in range(1, len(geo)):
-        if legs[k - 1] < min_leg:
+        if legs[k - 1] < min_leg and (actions is None or actions[k].empty):
             hold[-1] += float(dt[k - 1]) * 1000.0
             leave[-1] = k
         else:
@@ -187,12 +223,16 @@ def litchi_legs(geo: np.ndarray, index: np.ndarray) -> np.ndarray:
 
 
 def litchi_csv(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np.ndarray | None = None,
-               frame: str = "relative", durations: np.ndarray | None = None) -> str:
+               frame: str = "relative", durations: np.ndarray | None = None,
+               actions: list[CameraAction] | None = None) -> str:
     """Litchi mission CSV: the planned points (holds merged, :func:`litchi_rows`), altitude in
     ``frame`` (``altitudemode`` 0 above the takeoff point, 1 above ground), heading along the
-    next leg, speed of the leg that starts there, holds as ``Stay For`` actions."""
+    next leg (or the camera's, :mod:`staghunt.missions.camera`), speed of the leg that starts
+    there, holds as ``Stay For`` actions, the camera's tilt, photos and distance interval."""
     ground = geo[:, 2] if ground is None else ground
-    idx, alt, spd, hold = litchi_rows(geo, speeds, home, ground, frame, durations)
+    idx, alt, spd, hold = litchi_rows(geo, speeds, home, ground, frame, durations, actions=actions)
+    acts = [CameraAction()] * len(geo) if actions is None else actions
+    interval = _litchi_intervals([acts[i] for i in idx])
     mode = LITCHI_ALTITUDE_MODE[frame]
     out = io.StringIO()
     w = csv.writer(out, lineterminator="\n")
@@ -204,8 +244,15 @@ def litchi_csv(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np
         dlat = math.radians(pts[b, 0] - pts[a, 0])
         dlon = math.radians(pts[b, 1] - pts[a, 1]) * math.cos(math.radians(pts[a, 0]))
         heading = (math.degrees(math.atan2(dlon, dlat)) + 360.0) % 360.0
+        a = acts[idx[k]]
+        if a.heading_deg is not None:
+            heading = float(a.heading_deg)
         actions = ["-1", "0"] * 15
-        ms, slot = int(round(hold[k])), 0
+        slot = 0
+        if a.gimbal_pitch_deg is not None:
+            actions[0:2] = [str(LITCHI_TILT_CAMERA), f"{a.gimbal_pitch_deg:.0f}"]
+            slot = 1
+        ms = int(round(hold[k] + 1000.0 * a.hold_s))
         while ms > 0:
             if slot == 15:
                 raise TargetLimitError(f"Litchi: a hold of {hold[k] / 1000:.1f} s needs more than 15 Stay For actions")
@@ -213,11 +260,34 @@ def litchi_csv(geo: np.ndarray, speeds: np.ndarray, home: np.ndarray, ground: np
             actions[2 * slot:2 * slot + 2] = [str(LITCHI_STAY_FOR), str(chunk)]
             ms -= chunk
             slot += 1
+        if a.photo:
+            if slot == 15:
+                raise TargetLimitError("Litchi: no action slot left for the photo (15 actions a waypoint)")
+            actions[2 * slot:2 * slot + 2] = [str(LITCHI_TAKE_PHOTO), "0"]
+        gimbal = ["2", f"{a.gimbal_pitch_deg:.0f}"] if a.gimbal_pitch_deg is not None else ["0", "0"]
         row = [f"{pts[k, 0]:.8f}", f"{pts[k, 1]:.8f}", f"{alt[k]:.2f}",
-               f"{heading:.1f}", "0", "0", "0", "0"] + actions
-        row += [str(mode), f"{spd[k]:.2f}", "0", "0", "0", "0", "-1", "-1"]
+               f"{heading:.1f}", "0", "0"] + gimbal + actions
+        row += [str(mode), f"{spd[k]:.2f}", "0", "0", "0", "0", "-1",
+                f"{interval[k]:.2f}" if interval[k] > 0 else "-1"]
         w.writerow(row)
     return out.getvalue()
+
+
+LITCHI_TAKE_PHOTO = 1
+LITCHI_TILT_CAMERA = 5
+
+
+def _litchi_intervals(acts: list[CameraAction]) -> list[float]:
+    """``photo_distinterval`` of each written waypoint: the distance of the capture it is in (from
+    the waypoint that starts it to the one before the one that stops it), else 0."""
+    out, current = [], 0.0
+    for a in acts:
+        if a.stop:
+            current = 0.0
+        if a.start_distance_m is not None:
+            current = float(a.start_distance_m)
+        out.append(current)
+    return out
 
 
 

@@ -66,6 +66,14 @@ def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: s
             assert e.name is not None
             events.append(Event(e.time, "disappear", e.name))
             continue
+        if e.kind == "uav_lost":
+            assert e.uav is not None
+            events.append(Event(e.time, "uav_lost", e.uav))
+            continue
+        if e.kind == "objective":
+            assert e.objective is not None
+            events.append(Event(e.time, "objective", e.objective.name, objective=e.objective.model_dump()))
+            continue
         name = e.name
         if name is None:
             name, popup = f"pop-up {popup}", popup + 1
@@ -107,6 +115,8 @@ def check_names(dyn: Dynamics, world: World, key: str = "events") -> None:
     for i, e in enumerate(dyn.events):
         if e.kind == "appear":
             there.add(e.name)
+        elif e.kind != "disappear":
+            continue
         elif e.name in appears and e.name not in there:
             raise ScenarioError(f"{e.name!r} disappears at t = {fmt(e.time)} s, before it appears at "
                                 f"t = {fmt(appears[e.name])} s", f"{key}[{i}].time")
@@ -154,7 +164,11 @@ def dynamics_to_dict(dyn: Dynamics) -> dict[str, Any]:
         rows = []
         for e in dyn.events:
             row: dict[str, Any] = {"time": e.time, "kind": e.kind, "name": e.name}
-            if isinstance(e.shape, Cylinder):
+            if e.kind == "uav_lost":
+                row = {"time": e.time, "kind": e.kind, "uav": e.name}
+            elif e.kind == "objective":
+                row = {"time": e.time, "kind": e.kind, "objective": e.objective}
+            elif isinstance(e.shape, Cylinder):
                 row.update(x=e.shape.x, y=e.shape.y, radius=e.shape.radius)
             elif e.shape is not None:
                 row["polygon"] = [list(v) for v in e.shape.polygon]

@@ -24,7 +24,8 @@ from staghunt.task import UAV
 from staghunt.task.objectives import AreaObjective, FacadeObjective, Inspection, Objective, Payload, PointObjective
 from staghunt.world import GeoOrigin, World
 
-__all__ = ["inspection_from_tables", "merge_objectives", "INSPECTION_KEYS"]
+__all__ = ["INSPECTION_KEYS", "check_inspection_events", "inspection_from_tables", "merge_objectives",
+           "objective_from_data"]
 
 INSPECTION_KEYS = ("camera", "payload", "inspection", "objectives")
 """The top-level keys an objectives file gives (and replaces in the scenario)."""
@@ -253,4 +254,51 @@ def merge_objectives(scenario: Mapping[str, Any], objectives: Mapping[str, Any])
         elif isinstance(v, Mapping):
             out[table] = {k: x for k, x in v.items() if k not in drop}
     out.update(given)
+    return out
+
+
+def objective_from_data(data: Mapping[str, Any], scenario: Any, key: str, base_dir: Path | None = None) -> Objective:
+    """An objective given as plain data (an events file's ``objective`` table) checked against
+    ``scenario`` as the scenario's own objectives are (:class:`ScenarioError` naming ``key``)."""
+    from pydantic import TypeAdapter, ValidationError
+
+    from staghunt.scenario.schema_inspection import ObjectiveTable
+
+    insp = scenario.inspection
+    if insp is None:
+        raise ScenarioError("an objective added in flight needs an inspection (a camera and objectives)", key)
+    try:
+        table = TypeAdapter(ObjectiveTable).validate_python(dict(data))
+    except ValidationError as exc:
+        first = exc.errors(include_url=False)[0]
+        where = ".".join(str(p) for p in first["loc"][1:])
+        raise ScenarioError(first["msg"], f"{key}.{where}" if where else key) from None
+    if table.name in {o.name for o in insp.objectives}:
+        raise ScenarioError(f"{table.name!r} is already the name of an objective", f"{key}.name")
+    cameras = {p.camera.name: p.camera for p in insp.payloads}
+    return _objective(table, 0, scenario.world, scenario.origin, base_dir, cameras, insp.payloads[0].camera,
+                      insp.payloads[0], scenario.team, scenario.costs.min_clearance, scenario.vehicle.max_speed)
+
+
+def check_inspection_events(scenario: Any, events: Sequence[Any], source: str = "events") -> list[Any]:
+    """The inspection's events checked: a ``uav_lost`` names a UAV of the team (once), an
+    ``objective`` is a valid objective of the scenario; returns the events with each objective
+    converted (its ``objective`` the :class:`Objective`). :class:`ScenarioError` naming the event."""
+    from dataclasses import replace
+
+    names = [u.name for u in scenario.team]
+    lost: set[str] = set()
+    out = []
+    for i, e in enumerate(events):
+        if e.kind == "uav_lost":
+            if e.name not in names:
+                raise ScenarioError(f"no UAV named {e.name!r}; the team: {', '.join(names)}", f"events[{i}].uav")
+            if e.name in lost:
+                raise ScenarioError(f"{e.name!r} is lost twice", f"events[{i}].uav")
+            lost.add(e.name)
+        elif e.kind == "objective":
+            e = replace(e, objective=objective_from_data(e.objective, scenario, f"events[{i}].objective"))
+        out.append(e)
+    if len(lost) >= len(names):
+        raise ScenarioError("every UAV of the team is lost: nobody is left to finish the inspection", "events")
     return out

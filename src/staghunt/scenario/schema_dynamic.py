@@ -10,6 +10,7 @@ from typing import Annotated, Literal, Optional
 from pydantic import ConfigDict, Field, model_validator
 
 from staghunt.scenario.errors import fmt as _fmt
+from staghunt.scenario.schema_inspection import ObjectiveTable
 from staghunt.scenario.schema_base import Number, Polygon, Solid, Table, fail
 
 __all__ = ["EventTable", "EventsFile", "JibTable", "MovingTable", "SensingTable"]
@@ -54,10 +55,12 @@ class JibTable(Solid):
 class EventTable(Table):
     """A change at ``time``: ``appear`` (a cylinder ``x``, ``y``, ``radius`` through the whole
     height band, or a ``polygon``, a no-fly zone unless ``height`` makes it a prism from
-    ``base``), unknown to the plan until a UAV senses it; ``disappear`` (the obstacle ``name``)."""
+    ``base``), unknown to the plan until a UAV senses it; ``disappear`` (the obstacle ``name``);
+    for an inspection, ``uav_lost`` (the UAV ``uav`` lands where it is) and ``objective`` (an
+    objective table added in flight)."""
 
     time: Seconds
-    kind: Literal["appear", "disappear"]
+    kind: Literal["appear", "disappear", "uav_lost", "objective"]
     name: Optional[Annotated[str, Field(pattern=r"\S")]] = Field(None, description="appear: default 'pop-up <i>'; "
         "disappear: required")
     x: Optional[Number] = None
@@ -66,10 +69,25 @@ class EventTable(Table):
     polygon: Optional[Polygon] = None
     base: Optional[Annotated[float, Field(ge=0, description="m above ground (polygon)")]] = None
     height: Optional[Annotated[float, Field(gt=0, description="top, m above ground (polygon); absent: a no-fly zone")]] = None
+    uav: Optional[Annotated[str, Field(pattern=r"\S", description="uav_lost: the UAV's name")]] = None
+    objective: Optional[ObjectiveTable] = Field(None, description="objective: the objective added")
 
     @model_validator(mode="after")
     def _shape(self) -> "EventTable":
-        given = {k for k in ("x", "y", "radius", "polygon", "base", "height") if getattr(self, k) is not None}
+        given = {k for k in ("x", "y", "radius", "polygon", "base", "height", "name", "uav", "objective")
+                 if getattr(self, k) is not None}
+        own = {"uav_lost": "uav", "objective": "objective"}
+        if self.kind in own:
+            key = own[self.kind]
+            if key not in given:
+                raise fail(key, f"required key is missing (kind = '{self.kind}')")
+            if given - {key}:
+                raise fail(sorted(given - {key})[0], f"not used with kind = '{self.kind}'")
+            return self
+        for key in ("uav", "objective"):
+            if key in given:
+                raise fail(key, f"not used with kind = '{self.kind}'")
+        given -= {"name"}
         if self.kind == "disappear":
             if self.name is None:
                 raise fail("name", "required key is missing (the obstacle that disappears)")

@@ -124,14 +124,16 @@ class SlewingJib:
 
 @dataclass(frozen=True)
 class Event:
-    """A change of the world at ``time`` (s): ``appear`` adds ``shape`` (a :class:`Cylinder`
-    or :class:`Prism`), ``disappear`` removes the obstacle called ``name`` (static, moving or
-    appeared)."""
+    """A change at ``time`` (s): ``appear`` adds ``shape`` (a :class:`Cylinder` or
+    :class:`Prism`), ``disappear`` removes the obstacle called ``name`` (static, moving or
+    appeared); for an inspection, ``uav_lost`` (the UAV called ``name`` lands where it is) and
+    ``objective`` (``objective``: the objective's table, as plain data, added to the inspection)."""
 
     time: float
-    kind: Literal["appear", "disappear"]
+    kind: Literal["appear", "disappear", "uav_lost", "objective"]
     name: str
     shape: Cylinder | Prism | None = None
+    objective: dict | None = None
 
 
 @dataclass(frozen=True)

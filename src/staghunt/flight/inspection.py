@@ -1,0 +1,348 @@
+"""An inspection flown in simulation: the vehicles fly every UAV's timeline, each camera
+triggers along the *flown* trajectory, the task layer tracks the work and re-allocates it when
+a UAV is lost, an objective is added or an obstacle appears; the photos are measured for
+coverage.
+
+- Vehicles: :class:`~staghunt.flight.vehicles.SimulatedTeam` (rotorpy multirotors and their SE(3)
+  controllers) tracking the timeline's position, velocity, acceleration and jerk at ``sim_rate``,
+  optionally in Dryden wind.
+- Cameras (:class:`CameraTrigger`, one per UAV): while the UAV's reference is in a capture, a
+  photo at its start, then one whenever the vehicle has flown the segment's trigger distance since
+  the last, never sooner than the camera's minimum interval after it (a photo due earlier waits);
+  at a viewpoint, one photo three quarters into the hover. A photo is taken where the vehicle
+  truly is, with the gimbal at the planned angles (a stabilised gimbal), at the vehicle's speed.
+- Decisions (:mod:`staghunt.inspection.decision`): events are read at the planner's ticks (10 Hz);
+  the re-allocation's measured time (at least one tick) is the latency, the old timeline flies
+  meanwhile. A lost UAV lands straight down at 1 m/s where it is.
+- The flight is judged on the vehicles: separation at the same instant, clearance to the site's
+  obstacles (those that appeared, from then on), ground and ceiling; contact and margin breaches
+  are reported apart.
+"""
+
+from __future__ import annotations
+
+import io
+import math
+import time
+from dataclasses import dataclass, field, replace
+from typing import Any, Callable
+
+import numpy as np
+
+from staghunt.acquisition.clearance import point_clearance
+from staghunt.acquisition.coverage import Photos, measure_inspection
+from staghunt.inspection.decision import Decision, WorkLog, reallocate
+from staghunt.inspection.planner import InspectConfig
+from staghunt.inspection.tasks import make_tasks
+from staghunt.inspection.timeline import Piece, Timeline
+from staghunt.scenario.model import Scenario
+from staghunt.world.dynamic import Event
+
+__all__ = ["CameraTrigger", "InspectionFlight", "captures_csv", "fly_inspection"]
+
+SIM_RATE = 100.0
+TICK_S = 0.1
+
+
+class CameraTrigger:
+    """One UAV's camera: distance (or hover) triggering along its flown trajectory."""
+
+    def __init__(self, uav: int, min_interval: float) -> None:
+        self.uav = uav
+        self.min_interval = min_interval
+        self.piece: Piece | None = None
+        self.last_t = -math.inf
+        self.last_pos: np.ndarray | None = None
+        self.flown = 0.0
+        self.due = False
+        self.photos: list[tuple] = []
+
+    def update(self, t: float, piece: Piece | None, pos: np.ndarray, vel: np.ndarray) -> None:
+        """One simulation step at ``t``: ``piece`` the reference's piece now (``None``: none)."""
+        seg = piece.segment if piece is not None and piece.kind == "capture" else None
+        if piece is not self.piece:  # a new piece: a capture starts with a photo
+            self.piece = piece
+            self.flown = 0.0
+            self.due = seg is not None and seg.trigger == "distance"
+            self.hovered = False
+            self.last_pos = pos.copy()
+        if seg is None:
+            self.last_pos = pos.copy()
+            return
+        if seg.trigger == "points":
+            if not self.hovered and t >= piece.t0 + 0.75 * (piece.t1 - piece.t0):
+                self.due, self.hovered = True, True
+        else:
+            self.flown += float(np.linalg.norm(pos - self.last_pos))
+            if self.flown >= seg.trigger_distance:
+                self.due = True
+        self.last_pos = pos.copy()
+        if self.due and t - self.last_t >= self.min_interval - 1e-9:
+            k = int(np.argmin(np.linalg.norm(seg.points - pos, axis=1)))
+            self.photos.append((t, self.uav, pos.copy(), float(seg.yaw[k]), float(seg.pitch[k]),
+                                float(np.linalg.norm(vel)), seg.objective, int(piece.task)))
+            self.last_t, self.due, self.flown = t, False, 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class InspectionFlight:
+    """A simulated inspection: ``times (T,)``, ``actual``/``reference``/``velocity (N, T, 3)``;
+    ``photos`` taken; ``coverage`` measured on them (per objective); ``decisions`` in flight;
+    ``lost`` ``{name: time}``; per UAV least separation and clearance in the flight; ``problems``
+    (contact or a breach of a required margin; empty: safe); ``timeline`` as finally flown."""
+
+    scenario: Scenario
+    timeline: Timeline
+    times: np.ndarray
+    actual: np.ndarray
+    reference: np.ndarray
+    velocity: np.ndarray
+    photos: Photos
+    coverage: tuple[dict, ...]
+    decisions: tuple[Decision, ...]
+    lost: dict[str, float]
+    min_separation: np.ndarray
+    separation_limit: np.ndarray
+    min_clearance: np.ndarray
+    required_clearance: float
+    problems: tuple[str, ...]
+    wall_time_s: float
+    wind: float
+    details: dict = field(default_factory=dict)
+
+    @property
+    def safe(self) -> bool:
+        return not any(p.startswith("contact") for p in self.problems)
+
+    def summary(self) -> dict[str, Any]:
+        names = list(self.timeline.names)
+        err = np.linalg.norm(self.actual - self.reference, axis=-1)
+        return {
+            "simulator": "rotorpy multirotors with rotorpy's SE3Control", "rate_hz": SIM_RATE, "wind_m_s": self.wind,
+            "duration_s": float(self.times[-1]) if len(self.times) else 0.0, "wall_time_s": self.wall_time_s,
+            "photos": len(self.photos), "tracking_rms_m": dict(zip(names, np.sqrt((err ** 2).mean(axis=1)).tolist())),
+            "min_separation_m": dict(zip(names, self.min_separation.tolist())),
+            "separation_limit_m": dict(zip(names, self.separation_limit.tolist())),
+            "min_clearance_m": dict(zip(names, self.min_clearance.tolist())),
+            "required_clearance_m": self.required_clearance, "lost": self.lost,
+            "decisions": [{"time_s": d.time, "trigger": d.trigger, "latency_s": d.latency_s, "switch_s": d.switch,
+                           "tasks_reallocated": d.tasks_left, "makespan_s": d.allocation.makespan,
+                           "notes": list(d.notes)} for d in self.decisions],
+            "safe": self.safe, "problems": list(self.problems)}
+
+    def coverage_json(self) -> dict[str, Any]:
+        from staghunt.inspection.files import clean
+
+        return clean({"format": "staghunt-coverage", "version": 1, "measured_on": "the flown trajectory (simulated)",
+                      "wind_m_s": self.wind, "photos": len(self.photos), "objectives": list(self.coverage),
+                      "lost": self.lost, "decisions": self.summary()["decisions"]})
+
+
+def captures_csv(flight: InspectionFlight) -> str:
+    """``t,uav,x,y,z,heading_deg,gimbal_pitch_deg,speed,objective,task``: every photo, the camera's
+    position in the site frame (``z`` as in ``flight.csv``), ``heading_deg`` the direction of the
+    image's height axis counter-clockwise from east, ``gimbal_pitch_deg`` -90 = nadir."""
+    p = flight.photos
+    out = io.StringIO()
+    out.write("t,uav,x,y,z,heading_deg,gimbal_pitch_deg,speed,objective,task\n")
+    for i in range(len(p)):
+        x, y, z = p.position[i]
+        name = flight.timeline.names[int(p.uav[i])]
+        out.write(f"{p.t[i]:.3f},{name},{x:.3f},{y:.3f},{z:.3f},{math.degrees(p.yaw[i]) % 360.0:.2f},"
+                  f"{math.degrees(p.pitch[i]):.2f},{p.speed[i]:.3f},{p.objective[i]},{int(p.segment[i])}\n")
+    return out.getvalue()
+
+
+def _piece_at(timeline: Timeline, k: int, t: float) -> Piece | None:
+    pieces = timeline.pieces[k]
+    for p in pieces:
+        if p.t0 <= t < p.t1 or (p.t0 == p.t1 == t):
+            return p
+    return None
+
+
+def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, ...] = (), wind: float = 0.0,
+                   seed: int = 0, config: InspectConfig | None = None, tail_s: float = 3.0,
+                   progress: Callable[[float, float], None] | None = None) -> InspectionFlight:
+    """Fly ``timeline`` (see the module's docstring) with ``events`` (``uav_lost``, ``objective``,
+    ``appear``, ``disappear``); one ``numpy.random.Generator`` from ``seed`` drives the wind."""
+    from staghunt.flight.vehicles import DrydenGust, SimulatedTeam
+
+    started = time.perf_counter()
+    config = config if config is not None else InspectConfig()
+    insp = scenario.inspection
+    assert insp is not None
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / SIM_RATE
+    n = timeline.n
+    start_pos = timeline.positions(np.array([0.0]))[:, 0]
+    gust = None
+    if wind > 0:
+        gust = DrydenGust(np.array([wind, 0.0, 0.0]), float(np.mean(start_pos[:, 2])), dt, rng)
+    team = SimulatedTeam(start_pos, dt, gust)
+    cams = [CameraTrigger(k, insp.payloads[k].camera.min_trigger_interval_s) for k in range(n)]
+    from staghunt.acquisition.plan import plan_captures
+
+    log = WorkLog(make_tasks(insp, plan_captures(scenario, insp)))
+    _check_tasks(log, timeline)
+    alive = np.ones(n, dtype=bool)
+    lost: dict[int, tuple[float, np.ndarray]] = {}
+    decisions: list[Decision] = []
+    pending = sorted(events, key=lambda e: e.time)
+    world_now = scenario
+    queued: list[tuple[float, Timeline, Decision]] = []
+    times, actual, refs, vels = [], [], [], []
+    t, step, end = 0.0, 0, timeline.end + tail_s
+    names = [u.name for u in scenario.team]
+    while t <= end + 1e-9:
+        if step % int(round(TICK_S * SIM_RATE)) == 0:
+            while queued and queued[0][0] <= t + 1e-9:  # a decision takes effect
+                _, timeline, _ = queued.pop(0)
+                end = max(end, timeline.end + tail_s)
+            fired = [e for e in pending if e.time <= t + 1e-9]
+            pending = [e for e in pending if e.time > t + 1e-9]
+            if fired:
+                added, changed, why = [], False, []
+                for e in fired:
+                    if e.kind == "uav_lost":
+                        k = names.index(e.name)
+                        if alive[k]:
+                            alive[k] = False
+                            lost[k] = (t, team.positions()[k].copy())
+                            why.append(f"{e.name} lost")
+                    elif e.kind == "objective":
+                        added.append(e.objective)
+                        why.append(f"objective {e.objective.name} added")
+                    elif e.kind in ("appear", "disappear"):
+                        world_now = _changed_world(world_now, e)
+                        changed = True
+                        why.append(f"{e.name} {e.kind}s")
+                if added:
+                    insp = replace(insp, objectives=insp.objectives + tuple(added))
+                    world_now = replace(world_now, inspection=insp)
+                new, decision = reallocate(world_now, insp, log, timeline, t, alive, lost, config, seed + step,
+                                           "; ".join(why), tuple(added), changed, latency_floor=TICK_S)
+                switch = math.ceil((t + decision.latency_s) / TICK_S - 1e-9) * TICK_S
+                decision = replace(decision, switch=switch)
+                decisions.append(decision)
+                queued.append((switch, new, decision))
+                queued.sort(key=lambda q: q[0])
+                end = max(end, new.end + tail_s)
+                if progress is not None:
+                    progress(t, end)
+        state = timeline.state(np.array([t]))[:, :, 0]  # (4, N, 3)
+        for k, (t_lost, at) in lost.items():  # a lost UAV: straight down where it was
+            g = float(np.asarray(scenario.world.terrain.height(at[:1], at[1:2]))[0]) + 0.3
+            z = max(g, at[2] - 1.0 * (t - t_lost))
+            state[:, k] = 0.0
+            state[0, k] = [at[0], at[1], z]
+            state[1, k, 2] = -1.0 if z > g else 0.0
+        team.step(t, state)
+        pos, vel = team.positions(), team.velocities()
+        for k in range(n):
+            if alive[k]:
+                cams[k].update(t, _piece_at(timeline, k, t), pos[k], vel[k])
+        times.append(t)
+        actual.append(pos)
+        refs.append(state[0].copy())
+        vels.append(vel)
+        step += 1
+        t = step * dt
+    photos = _photos(cams)
+    cameras = {o.name: insp.camera_for(o) for o in insp.objectives}
+    coverage = tuple(measure_inspection(insp, world_now, photos, cameras))
+    A = np.stack(actual, axis=1)
+    R = np.stack(refs, axis=1)
+    V = np.stack(vels, axis=1)
+    T = np.array(times)
+    sep, limit, clear, problems = _judge(scenario, world_now, A, T, lost, [e for e in events if e.kind == "appear"])
+    return InspectionFlight(scenario, timeline, T, A, R, V, photos, coverage, tuple(decisions),
+                            {names[k]: v[0] for k, v in lost.items()}, sep, limit, clear,
+                            float(scenario.costs.min_clearance), tuple(problems), time.perf_counter() - started, wind)
+
+
+def _check_tasks(log: WorkLog, timeline: Timeline) -> None:
+    """The timeline's captures must be the tasks of this inspection (same indices)."""
+    for pieces in timeline.pieces:
+        for p in pieces:
+            if p.task is not None and (p.task >= len(log.tasks) or log.tasks[p.task].objective != p.segment.objective):
+                raise ValueError("the timeline's captures do not match the scenario's objectives (was the inspection "
+                                 "planned for another scenario or other objectives?)")
+
+
+def _photos(cams: list[CameraTrigger]) -> Photos:
+    rows = sorted((p for c in cams for p in c.photos), key=lambda r: (r[0], r[1]))
+    if not rows:
+        return Photos.empty()
+    return Photos(np.array([r[0] for r in rows]), np.array([r[1] for r in rows]), np.array([r[2] for r in rows]),
+                  np.array([r[3] for r in rows]), np.array([r[4] for r in rows]), np.array([r[5] for r in rows]),
+                  np.array([r[6] for r in rows]), np.array([r[7] for r in rows]))
+
+
+def _changed_world(scenario: Scenario, e: Event) -> Scenario:
+    from staghunt.world import Cylinder, Prism
+
+    w = scenario.world
+    if e.kind == "appear":
+        if isinstance(e.shape, Cylinder):
+            w = replace(w, cylinders=w.cylinders + (e.shape,))
+        elif isinstance(e.shape, Prism):
+            w = replace(w, prisms=w.prisms + (e.shape,))
+    else:
+        w = replace(w, cylinders=tuple(c for c in w.cylinders if c.name != e.name),
+                    prisms=tuple(p for p in w.prisms if p.name != e.name))
+    return replace(scenario, world=w)
+
+
+def _judge(scenario: Scenario, final: Scenario, A: np.ndarray, T: np.ndarray, lost: dict, appeared: list[Event]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
+    """Least separation and clearance per UAV in the simulated flight, and the problems: contact
+    (separation under twice the body radius, clearance under 0) or a breach of a required margin
+    (separation at most ``d_s + 2 r``, clearance under the scenario's minimum), ground, ceiling."""
+    n = A.shape[0]
+    names = [u.name for u in scenario.team]
+    radius = np.array([u.radius for u in scenario.team])
+    limit = scenario.costs.safe_distance + 2 * radius
+    sep = np.full(n, np.inf)
+    problems: list[str] = []
+    on_ground = np.zeros((n, len(T)), dtype=bool)
+    for k, (t_lost, at) in lost.items():
+        g = float(np.asarray(scenario.world.terrain.height(at[:1], at[1:2]))[0])
+        on_ground[k] = (T > t_lost) & (A[k, :, 2] - g < 0.5)
+    for a in range(n):
+        for b in range(a + 1, n):
+            d = np.linalg.norm(A[a] - A[b], axis=-1)
+            d = np.where(on_ground[a] | on_ground[b], np.inf, d)
+            m = float(d.min())
+            sep[a], sep[b] = min(sep[a], m), min(sep[b], m)
+            i = int(np.argmin(d))
+            if m <= 2 * max(radius[a], radius[b]):
+                problems.append(f"contact: {names[a]} and {names[b]} {m:.2f} m apart at t = {T[i]:.1f} s")
+            elif m <= max(limit[a], limit[b]):
+                problems.append(f"separation breach: {names[a]} and {names[b]} {m:.2f} m apart at t = {T[i]:.1f} s "
+                                f"(required more than {max(limit[a], limit[b]):g} m)")
+    stride = max(1, int(round(0.1 * SIM_RATE)))
+    clear = np.full(n, np.inf)
+    required = float(scenario.costs.min_clearance)
+    for k in range(n):
+        pts = A[k, ::stride]
+        ts = T[::stride]
+        gap = point_clearance(scenario, pts, float(radius[k]))
+        for e in appeared:  # an obstacle that appeared counts from its time on
+            w = _changed_world(replace(scenario, world=replace(scenario.world, cylinders=(), prisms=())), e)
+            extra = point_clearance(w, pts, float(radius[k]))
+            extra = np.where(ts >= e.time, extra, np.inf)
+            gap = np.minimum(gap, extra)
+        gap = np.where(on_ground[k, ::stride], np.inf, gap)
+        clear[k] = float(gap.min())
+        i = int(np.argmin(gap))
+        if clear[k] < 0:
+            problems.append(f"contact: {names[k]} touches an obstacle at t = {ts[i]:.1f} s ({clear[k]:.2f} m)")
+        elif clear[k] < required - 1e-9:
+            problems.append(f"clearance breach: {names[k]} {clear[k]:.2f} m from an obstacle at t = {ts[i]:.1f} s "
+                            f"(required {required:g} m)")
+        h = pts[:, 2] - np.asarray(scenario.world.terrain.height(pts[:, 0], pts[:, 1]), dtype=float)
+        low = (h < 0) & ~on_ground[k, ::stride]
+        if low.any():
+            problems.append(f"contact: {names[k]} below the ground at t = {ts[int(np.argmax(low))]:.1f} s")
+    return sep, limit, clear, problems
