@@ -27,7 +27,7 @@ from shapely.geometry import Polygon
 
 from staghunt.acquisition.clearance import Keepout
 from staghunt.acquisition.segments import CaptureSegment, ObjectivePlan, arc_length
-from staghunt.acquisition.survey import _runs
+from staghunt.acquisition.survey import MARGIN, _runs
 from staghunt.camera import Camera
 from staghunt.task.objectives import FacadeObjective, Payload
 
@@ -83,8 +83,8 @@ def plan_facade(obj: FacadeObjective, camera: Camera, payload: Payload, keep: Ke
     side_fp, front_fp = camera.footprint_m(gsd)
     horizontal = front_fp if not camera.landscape else side_fp  # the image's width lies level
     vertical = side_fp if not camera.landscape else front_fp
-    trigger = horizontal * (1.0 - obj.front_overlap)
-    spacing = vertical * (1.0 - obj.side_overlap)
+    trigger = MARGIN * horizontal * (1.0 - obj.front_overlap)
+    spacing = MARGIN * vertical * (1.0 - obj.side_overlap)
     speed = min(cruise_speed, camera.speed_for_blur(gsd, max_blur_px),
                 0.9 * trigger / camera.min_trigger_interval_s if camera.min_trigger_interval_s > 0 else math.inf)
     terrain = scenario.world.terrain

@@ -49,6 +49,10 @@ MAX_CLIMB_DEG = 30.0
 """Steepest climb or descent along a survey line."""
 STEP_M = 5.0
 """Longest distance between the planned points of a line."""
+MARGIN = 0.97
+"""Trigger distances and line spacings are planned at this share of what the overlaps allow, so
+that the overlaps still hold on the flown trajectory (a distance trigger fires up to one
+simulation step late, tracking and wind move the photos)."""
 
 
 def line_angle(poly: Polygon) -> float:
@@ -179,7 +183,7 @@ def plan_area(obj: AreaObjective, camera: Camera, keep: Keepout, cruise_speed: f
         return _profile(keep, poly, u, v, off, distance, nominal, extend, relief_fraction, max_climb_deg)
 
     def side_at(depth: float) -> float:
-        return camera.footprint_m(camera.gsd_cm(depth))[0]
+        return MARGIN * camera.footprint_m(camera.gsd_cm(depth))[0]
 
     def inset(depth: float) -> float:
         """How far inside an edge the outermost line goes: a cell on the edge is then in the
@@ -211,7 +215,7 @@ def plan_area(obj: AreaObjective, camera: Camera, keep: Keepout, cruise_speed: f
     moved: list[str] = []
     triggers: list[float] = []
     for i, ln in enumerate(lines):
-        trigger = camera.trigger_distance_m(camera.gsd_cm(ln.min_depth), obj.front_overlap)
+        trigger = MARGIN * camera.trigger_distance_m(camera.gsd_cm(ln.min_depth), obj.front_overlap)
         triggers.append(trigger)
         speed = min(cruise_speed, camera.speed_for_blur(camera.gsd_cm(ln.min_depth), max_blur_px),
                     0.9 * trigger / camera.min_trigger_interval_s

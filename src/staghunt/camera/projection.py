@@ -27,7 +27,7 @@ import numpy as np
 
 from staghunt.camera.model import Camera
 
-__all__ = ["camera_axes", "project", "surface_gsd", "tangent_basis"]
+__all__ = ["camera_axes", "project", "sensor_extent", "surface_gsd", "tangent_basis"]
 
 
 def camera_axes(yaw: np.ndarray, pitch: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -41,7 +41,7 @@ def camera_axes(yaw: np.ndarray, pitch: np.ndarray) -> tuple[np.ndarray, np.ndar
     return f, r, u
 
 
-def _sensor(camera: Camera) -> tuple[float, float]:
+def sensor_extent(camera: Camera) -> tuple[float, float]:
     """``(extent along right, extent along up)`` of the sensor (mm)."""
     if camera.landscape:
         return camera.sensor_width_mm, camera.sensor_height_mm
@@ -60,7 +60,7 @@ def project(camera: Camera, points: np.ndarray, position: np.ndarray, yaw: np.nd
     with np.errstate(divide="ignore", invalid="ignore"):
         x = camera.focal_length_mm * (d * r).sum(-1) / z
         y = camera.focal_length_mm * (d * u).sum(-1) / z
-    w, h = _sensor(camera)
+    w, h = sensor_extent(camera)
     inside = (z > 0) & (np.abs(x) <= 0.5 * w) & (np.abs(y) <= 0.5 * h)
     return x, y, z, inside
 

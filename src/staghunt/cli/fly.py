@@ -27,8 +27,12 @@ def add_commands(sub: Any) -> None:
     p = command(sub, "fly", cmd_fly, {
         EXIT_OK: "arrived safely", EXIT_NEGATIVE: "stopped (goal unreachable) or unsafe flight (the log is still written)",
         EXIT_USAGE: "bad input (before any simulation)", EXIT_INTERRUPTED: "interrupted (nothing written)"})
-    p.add_argument("source", metavar="SCENARIO|RESULT.json",
-                   help="built-in scenario, scenario .toml file, or a result.json written by 'staghunt plan'")
+    p.add_argument("source", metavar="SCENARIO|RESULT.json|INSPECTION.json",
+                   help="built-in scenario, scenario .toml file, or a result.json or inspection.json written by "
+                   "'staghunt plan'")
+    from staghunt.cli.inspect import add_objectives_option
+
+    add_objectives_option(p)
     p.add_argument("--events", metavar="FILE", type=path_argument,
                    help="events file (TOML: [[events]], [[moving]], [[jibs]], [sensing]) added to the scenario's")
     p.add_argument("--wind", type=number_between(0, 30, "m/s"), default=0.0, metavar="M/S",
@@ -52,10 +56,18 @@ def cmd_fly(args: argparse.Namespace) -> int:
     receives the UAVs' states at 10 Hz, senses obstacles that appear, predicts conflicts with moving
     ones, and re-solves the game in flight (warm-started, certified). Writes DIR/flight.csv,
     replans.json, flight.json (metrics), figures, flight.gif and replay.html (an offline 3-D
-    replay). Events: docs/scenario-format.md.
+    replay). Events: docs/scenario-format.md. An inspection (objectives in the scenario or
+    --objectives FILE, or an inspection.json) is planned and flown with its cameras: the task layer
+    re-allocates the work when a UAV is lost, an objective is added or an obstacle appears; it
+    writes flight.csv, captures.csv, coverage.json, flight.json, coverage.png and replay.html
+    (with the photos' footprints).
     """
     from staghunt.flight import FlyConfig, check_flight, fly  # the simulator: only for this command
 
+    if _is_inspection(args):
+        from staghunt.cli.inspect import run_inspection_fly
+
+        return run_inspection_fly(args)
     out_dir = Path(args.out)
     check_out_dir(out_dir, "flight.json")
     changes = {"latency_budget": args.latency, "replan_particles": args.replan_particles,
@@ -90,6 +102,22 @@ def cmd_fly(args: argparse.Namespace) -> int:
     _report(result)
     print(f"wrote {len(files)} files to {out_dir}")
     return EXIT_OK if result.status.value == "arrived" else EXIT_NEGATIVE
+
+
+def _is_inspection(args: argparse.Namespace) -> bool:
+    """An inspection to fly: an inspection.json, objectives given, or a scenario with objectives."""
+    src = str(args.source)
+    if args.objectives is not None:
+        return True
+    if src.endswith(".json"):
+        from staghunt.io.result_json import load_json_strict
+
+        data = load_json_strict(src)
+        return isinstance(data, dict) and data.get("format") == "staghunt-inspection"
+    from staghunt.scenario import load_scenario
+
+    scenario = load_scenario(src)
+    return scenario.inspection is not None and bool(scenario.inspection.objectives)
 
 
 def _report(result: Any) -> None:

@@ -227,3 +227,71 @@ def coverage_table(coverage: Any) -> str:
                      share(c["front_overlap"]), share(c["side_overlap"]),
                      "-" if c["blur_px"]["max"] is None else f"{c['blur_px']['max']:.2f}"))
     return _table(rows)
+
+
+def flight_report(summary: dict) -> str:
+    """The simulated inspection flight in a few lines."""
+    lines = [f"in flight (simulated, {summary['rate_hz']:g} Hz, wind {summary['wind_m_s']:g} m/s, "
+             f"{summary['duration_s']:.0f} s in {summary['wall_time_s']:.0f} s): {summary['photos']} photos; "
+             f"least separation {min(summary['min_separation_m'].values()):.2f} m, least clearance "
+             f"{min(summary['min_clearance_m'].values()):.2f} m (required {summary['required_clearance_m']:g})"]
+    for d in summary["decisions"]:
+        lines.append(f"  t = {d['time_s']:6.1f} s  {d['trigger']}: {d['tasks_reallocated']} tasks re-allocated in "
+                     f"{d['latency_s'] * 1000:.0f} ms, new makespan {d['makespan_s']:.0f} s")
+    for p in summary["problems"]:
+        lines.append(f"  problem: {p}")
+    return "\n".join(lines)
+
+
+def run_inspection_fly(args: argparse.Namespace) -> int:
+    """``staghunt fly`` of an inspection: plan it (or read inspection.json), fly it with its events,
+    write the flight's files."""
+    from staghunt.flight.inspection import fly_inspection, write_inspection_flight
+    from staghunt.inspection.files import read_inspection, read_timeline, write_inspection
+    from staghunt.inspection.planner import InspectConfig, plan_inspection
+    from staghunt.scenario.dynamics import load_events
+    from staghunt.scenario.inspection import check_inspection_events
+
+    out = Path(args.out)
+    check_out_dir(out, "flight.json")
+    plan = None
+    if str(args.source).endswith(".json"):
+        data = read_inspection(args.source)
+        scenario, timeline = read_timeline(data, args.source)
+    else:
+        scenario = load_inspection_scenario(args.source, args.objectives)
+        settings = scenario.solver.with_(particles=args.particles, iterations=args.iterations, waypoints=args.waypoints,
+                                         starts=args.starts)
+        plan = plan_inspection(scenario, scenario.inspection, InspectConfig(leg_settings=settings,
+                                                                            engine=args.engine or "auto"), seed=args.seed)
+        timeline = plan.timeline
+    events: list = []
+    if args.events is not None:
+        dyn = load_events(args.events, scenario)
+        if dyn.moving or dyn.jibs:
+            raise ValueError(f"{args.events}: an inspection's flight does not model moving obstacles or slewing jibs "
+                             "yet (only obstacles that appear or disappear, lost UAVs and added objectives)")
+        try:
+            events = check_inspection_events(scenario, dyn.events)
+        except ValueError as exc:
+            raise ValueError(f"{args.events}: {exc}") from None
+    if scenario.dynamics.moving or scenario.dynamics.jibs:
+        raise ValueError(f"{scenario.name}: an inspection's flight does not model moving obstacles or slewing jibs yet")
+
+    def progress(t: float, t_end: float) -> None:
+        if not args.quiet:
+            say(f"{PROG}: re-allocated at t = {t:.1f} s")
+
+    flight = fly_inspection(scenario, timeline, tuple(events), wind=args.wind, seed=args.seed, progress=progress)
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ValueError(f"cannot create output directory {str(out)!r}: {os_reason(exc)}") from None
+    files = []
+    if plan is not None:
+        files.append(write_inspection(plan, out / "inspection.json"))
+    files += write_inspection_flight(flight, out, plots=not args.no_plots)
+    print(flight_report(flight.summary()))
+    print(coverage_table(flight.coverage))
+    print(f"wrote {len(files)} files to {out}")
+    return EXIT_OK if not flight.problems else EXIT_NEGATIVE

@@ -346,3 +346,85 @@ def _judge(scenario: Scenario, final: Scenario, A: np.ndarray, T: np.ndarray, lo
         if low.any():
             problems.append(f"contact: {names[k]} below the ground at t = {ts[int(np.argmax(low))]:.1f} s")
     return sep, limit, clear, problems
+
+
+def flight_dict(flight: InspectionFlight, max_samples: int = 1500) -> dict[str, Any]:
+    """The replay page's data (:func:`staghunt.plots.replay.replay_html`): tracks, the site, the
+    decisions as its re-plans and every photo's footprint."""
+    from staghunt.acquisition.footprint import footprints
+
+    sc = flight.scenario
+    b = sc.world.bounds
+    stride = max(1, int(round(0.1 * SIM_RATE)))
+    idx = np.arange(0, len(flight.times), stride)
+    if len(idx) > max_samples:
+        idx = idx[np.linspace(0, len(idx) - 1, max_samples).round().astype(int)]
+    insp = sc.inspection
+    fps = []
+    for obj in insp.objectives:
+        mine = flight.photos.take(flight.photos.objective == obj.name)
+        corners = footprints(mine, insp.camera_for(obj), sc)
+        fps += [{"t": float(mine.t[i]), "uav": int(mine.uav[i]), "corners": corners[i].tolist()}
+                for i in range(len(mine)) if np.isfinite(corners[i]).all()]
+    terrain = None
+    if not sc.world.terrain.is_flat:
+        xs, ys = np.linspace(b.xmin, b.xmax, 25), np.linspace(b.ymin, b.ymax, 25)
+        X, Y = np.meshgrid(xs, ys)
+        terrain = {"x": xs.round(2).tolist(), "y": ys.round(2).tolist(),
+                   "z": np.round(sc.world.terrain.height(X, Y), 2).tolist()}
+    A = flight.actual
+    return {
+        "title": f"{sc.name} · inspection · {len(flight.photos)} photos",
+        "site": {"xmin": b.xmin, "xmax": b.xmax, "ymin": b.ymin, "ymax": b.ymax,
+                 "zmin": float(min(0.0, A[..., 2].min() - 1.0)), "zmax": float(A[..., 2].max() + 5.0)},
+        "times": np.round(flight.times[idx], 3).tolist(),
+        "uavs": [{"name": u.name, "radius": u.radius, "actual": np.round(A[n, idx], 2).tolist(),
+                  "reference": np.round(flight.reference[n, idx], 2).tolist()} for n, u in enumerate(sc.team)],
+        "cylinders": [[c.x, c.y, c.radius] for c in sc.world.cylinders],
+        "prisms": [{"polygon": [list(v) for v in p.polygon], "base": max(p.base, -1e9), "top": min(p.top, 1e9),
+                    "nofly": p.is_nofly} for p in sc.world.prisms],
+        "moving": [],
+        "replans": [{"time": d.time, "trigger": d.trigger, "verdict": f"{d.tasks_left} tasks re-allocated, "
+                     f"{d.latency_s * 1000:.0f} ms"} for d in flight.decisions],
+        "footprints": fps,
+        "terrain": terrain,
+    }
+
+
+def flight_csv(flight: InspectionFlight, rate: float = 10.0) -> str:
+    """``t,uav,x,y,z,vx,vy,vz,x_ref,y_ref,z_ref`` at ``rate`` Hz (site frame, m, m/s)."""
+    stride = max(1, int(round(SIM_RATE / rate)))
+    out = io.StringIO()
+    out.write("t,uav,x,y,z,vx,vy,vz,x_ref,y_ref,z_ref\n")
+    names = flight.timeline.names
+    for i in range(0, len(flight.times), stride):
+        for n in range(flight.actual.shape[0]):
+            p, v, r = flight.actual[n, i], flight.velocity[n, i], flight.reference[n, i]
+            out.write(f"{flight.times[i]:.2f},{names[n]},{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{v[0]:.3f},{v[1]:.3f},"
+                      f"{v[2]:.3f},{r[0]:.3f},{r[1]:.3f},{r[2]:.3f}\n")
+    return out.getvalue()
+
+
+def write_inspection_flight(flight: InspectionFlight, out_dir: Any, plots: bool = True) -> list[Any]:
+    """``flight.csv``, ``captures.csv``, ``coverage.json``, ``flight.json`` and, with ``plots``,
+    ``coverage.png`` and ``replay.html``, each written atomically."""
+    import json
+    from pathlib import Path
+
+    from staghunt.inspection.files import clean
+    from staghunt.io.atomic import write_text_atomic
+
+    out = Path(out_dir)
+    files = [write_text_atomic(flight_csv(flight), out / "flight.csv"),
+             write_text_atomic(captures_csv(flight), out / "captures.csv"),
+             write_text_atomic(json.dumps(flight.coverage_json(), indent=1) + "\n", out / "coverage.json"),
+             write_text_atomic(json.dumps(clean(flight.summary()), indent=1) + "\n", out / "flight.json")]
+    if plots:
+        from staghunt.plots.inspection import coverage_figure
+        from staghunt.plots.replay import write_replay_html
+
+        files.append(coverage_figure(flight.scenario, flight.scenario.inspection, flight.photos, out / "coverage.png",
+                                     "flown"))
+        write_replay_html(out / "replay.html", flight_dict(flight))
+        files.append(out / "replay.html")
+    return files

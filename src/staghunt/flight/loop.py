@@ -410,6 +410,10 @@ def check_flight(
         dyn = events
     else:
         dyn = load_events(events, scenario)
+    task_events = [e for e in dyn.events if e.kind in ("uav_lost", "objective")]
+    if task_events:  # the task layer's events: only an inspection's flight has work to re-allocate
+        raise FlightInputError(f"events: a {task_events[0].kind} event needs an inspection to re-allocate "
+                               "(give objectives: --objectives FILE)")
     scenario = replace(scenario, dynamics=dyn)
     settings = (settings or plan_settings or scenario.solver).with_(**(budget or {}))
     request = check_plan(scenario, "game", seed, settings, engine, threads, warn=warn)

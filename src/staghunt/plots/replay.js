@@ -123,6 +123,18 @@ function drawMoving(k) {
     const q = anchor && project(...anchor); if (q) text(m.name, q[0], q[1] - 10, C.moving, "center");
   }
 }
+function drawFootprints(k) {  // an inspection's photos taken by frame k: their frames on the surface
+  let shown = 0;
+  ctx.lineWidth = 0.7;
+  for (const fp of (D.footprints || [])) {
+    if (fp.frame > k) continue;
+    const c = []; for (let i = 0; i < 4; i++) c.push([fp.corners[3 * i], fp.corners[3 * i + 1], fp.corners[3 * i + 2]]);
+    const colour = U[fp.uav] ? U[fp.uav].colour : "#444";
+    fillPoly(c, colour, 0.06); ctx.strokeStyle = colour; ctx.globalAlpha = 0.35; line(c, true); ctx.globalAlpha = 1;
+    shown += 1;
+  }
+  st.footprints = shown;
+}
 function drawUavs(k) {
   ctx.save(); ctx.lineWidth = 1.2; ctx.setLineDash([5, 4]); ctx.globalAlpha = 0.35;
   for (const u of U) { ctx.strokeStyle = u.colour; const pts = []; for (let i = 0; i < F; i++) pts.push(at(u.reference, i, 3)); line(pts); }
@@ -174,7 +186,7 @@ function render() {
   const dpr = window.devicePixelRatio || 1, k = st.frame;
   ctx.setTransform(dpr, 0, 0, dpr, 0, 0); ctx.clearRect(0, 0, st.w, st.h);
   ctx.lineJoin = "round"; basis();
-  drawGround(); drawStatic(); drawMoving(k); drawUavs(k);
+  drawGround(); drawStatic(); drawMoving(k); drawFootprints(k); drawUavs(k);
   const j = lastReplan(k);
   text("t = " + fmt(times[k], 2) + " s", 10, 16, "#222");
   if (j >= 0) text("last replan R" + (j + 1) + " at " + fmt(D.replans[j].time, 2) + " s: " + D.replans[j].trigger + " → " + D.replans[j].verdict, 10, 34, C.moving);
@@ -257,5 +269,6 @@ window.staghuntReplay = Object.freeze({
   frameCount: () => F,
   uavPositions: () => U.map((u) => at(u.actual, st.frame, 3)),
   uavScreenPositions: () => st.screen.map((p) => p && p.slice()),
+  footprintsShown: () => st.footprints || 0,
 });
 })();

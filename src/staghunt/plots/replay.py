@@ -13,7 +13,8 @@ The page exposes a small test API on ``window.staghuntReplay``: ``setTime(t)`` (
 nearest frame, returns its time), ``time()``, ``frame()``, ``frameCount()``, ``uavPositions()``
 (site-frame ``[x, y, z]`` per UAV at the current frame, ``null`` where unknown) and
 ``uavScreenPositions()`` (``[px, py]`` of each UAV's dot in CSS pixels from the canvas's top-left
-corner, ``null`` where not drawn).
+corner, ``null`` where not drawn) and ``footprintsShown()`` (how many photos' footprints are drawn
+at the current frame: an inspection's photos taken by then, each in its UAV's colour).
 """
 
 from __future__ import annotations
@@ -140,6 +141,14 @@ def replay_data(flight: dict[str, Any], max_frames: int = MAX_FRAMES) -> dict[st
         frame = int(np.clip(np.searchsorted(kept, t, side="right") - 1, 0, idx.size - 1))
         replans.append({"time": round(t, 3), "frame": frame, "trigger": str(r.get("trigger", "")),
                         "verdict": str(r.get("verdict", ""))})
+    footprints = []
+    for fp in flight.get("footprints", []):  # an inspection's photos: where each frame fell
+        corners = _array(fp["corners"], (4, 3), "footprint corners")
+        if not np.isfinite(corners).all():
+            continue
+        t = float(fp["t"])
+        frame = int(np.clip(np.searchsorted(kept, t, side="right") - 1, 0, idx.size - 1))
+        footprints.append({"frame": frame, "uav": int(fp["uav"]), "corners": _flat(corners)})
     terrain = None
     if flight.get("terrain"):
         tr = flight["terrain"]
@@ -158,6 +167,7 @@ def replay_data(flight: dict[str, Any], max_frames: int = MAX_FRAMES) -> dict[st
         "prisms": prisms,
         "moving": moving,
         "replans": replans,
+        "footprints": footprints,
         "terrain": terrain,
         "colours": {"obstacle": _OBSTACLE_FACE, "obstacleEdge": _OBSTACLE_EDGE,
                     "nofly": _NOFLY_FACE, "moving": _MOVING},
