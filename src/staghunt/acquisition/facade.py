@@ -39,7 +39,7 @@ STEP_M = 1.0
 """Distance between the planned points of a layer."""
 
 
-def _loop(poly: Polygon, standoff: float, reach: float) -> list[tuple[np.ndarray, np.ndarray]]:
+def _loop(poly: Polygon, standoff: float, reach: float, trim: float = 0.0) -> list[tuple[np.ndarray, np.ndarray]]:
     """The loop at ``standoff`` around ``poly`` (its footprint grown with mitred corners,
     counter-clockwise; a corner sharper than the mitre limit is bevelled), one run per edge, as
     points at most ``STEP_M`` apart: ``[(points (M, 2), look (M, 2)), ...]``, ``look`` the point
@@ -49,7 +49,9 @@ def _loop(poly: Polygon, standoff: float, reach: float) -> list[tuple[np.ndarray
 
     At an inner (reflex) corner each of the two edges runs on past the corner by ``reach`` (half
     the horizontal footprint), still facing its own wall, so that the walls' ends in the corner
-    are photographed too."""
+    are photographed too. At an outer corner each run stops ``trim`` short of it (the wall's end
+    is still in view, the corner is ``standoff`` beyond it), so that two UAVs flying the two walls
+    never meet at the corner."""
     ring = poly.buffer(standoff, join_style="mitre", mitre_limit=2.0).exterior
     xy = np.asarray(ring.coords)[:-1]
     if not ring.is_ccw:
@@ -64,8 +66,10 @@ def _loop(poly: Polygon, standoff: float, reach: float) -> list[tuple[np.ndarray
         e = unit[k]
         if float(np.hypot(*(b - a))) < 1e-9:
             continue
-        a2 = a - reach * e if reflex[k] else a
-        b2 = b + reach * e if reflex[(k + 1) % V] else b
+        length = float(np.hypot(*(b - a)))
+        cut = min(trim, 0.25 * length)
+        a2 = a - reach * e if reflex[k] else a + cut * e
+        b2 = b + reach * e if reflex[(k + 1) % V] else b - cut * e
         n = max(1, math.ceil(float(np.hypot(*(b2 - a2))) / STEP_M))
         pts = a2 + (np.arange(n + 1) / n)[:, None] * (b2 - a2)
         runs.append((pts, pts + standoff * np.array([-e[1], e[0]])))  # inward: left of a counter-clockwise ring
@@ -100,7 +104,8 @@ def plan_facade(obj: FacadeObjective, camera: Camera, payload: Payload, keep: Ke
     moved: list[str] = []
     unreached: list[str] = []
     for k, zc in enumerate(heights):
-        for loop_xy, near in _loop(poly, distance, 0.5 * horizontal):
+        trim = scenario.costs.safe_distance + 2 * keep.radius + 1.0
+        for loop_xy, near in _loop(poly, distance, 0.5 * horizontal, trim):
             segs, m, u = layer.run(k, len(heights), zc, loop_xy, near, len(segments))
             segments.extend(segs)
             moved.extend(m)

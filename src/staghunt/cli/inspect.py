@@ -246,7 +246,7 @@ def flight_report(summary: dict) -> str:
 def run_inspection_fly(args: argparse.Namespace) -> int:
     """``staghunt fly`` of an inspection: plan it (or read inspection.json), fly it with its events,
     write the flight's files."""
-    from staghunt.flight.inspection import fly_inspection, write_inspection_flight
+    from staghunt.flight.inspection import fly_inspection
     from staghunt.inspection.files import read_inspection, read_timeline, write_inspection
     from staghunt.inspection.planner import InspectConfig, plan_inspection
     from staghunt.scenario.dynamics import load_events
@@ -295,3 +295,29 @@ def run_inspection_fly(args: argparse.Namespace) -> int:
     print(coverage_table(flight.coverage))
     print(f"wrote {len(files)} files to {out}")
     return EXIT_OK if not flight.problems else EXIT_NEGATIVE
+
+
+def write_inspection_flight(flight: Any, out_dir: Path, plots: bool = True) -> list[Path]:
+    """``flight.csv``, ``captures.csv``, ``coverage.json``, ``flight.json`` and, with ``plots``,
+    ``coverage.png`` and ``replay.html`` (the photos' footprints drawn), each written atomically."""
+    import json
+
+    from staghunt.flight.inspection import captures_csv, flight_csv, flight_dict
+    from staghunt.inspection.files import clean
+    from staghunt.io.atomic import write_text_atomic
+
+    files = [write_text_atomic(flight_csv(flight), out_dir / "flight.csv"),
+             write_text_atomic(captures_csv(flight), out_dir / "captures.csv"),
+             write_text_atomic(json.dumps(flight.coverage_json(), indent=1) + "\n", out_dir / "coverage.json"),
+             write_text_atomic(json.dumps(clean(flight.summary()), indent=1) + "\n", out_dir / "flight.json")]
+    if plots:
+        from staghunt.plots.inspection import coverage_figure
+        from staghunt.plots.replay import write_replay_html
+
+        figure = _figure(lambda: coverage_figure(flight.scenario, flight.scenario.inspection, flight.photos,
+                                                 out_dir / "coverage.png", "flown"))
+        if figure:
+            files.append(figure)
+        write_replay_html(out_dir / "replay.html", flight_dict(flight))
+        files.append(out_dir / "replay.html")
+    return files

@@ -403,28 +403,3 @@ def flight_csv(flight: InspectionFlight, rate: float = 10.0) -> str:
             out.write(f"{flight.times[i]:.2f},{names[n]},{p[0]:.3f},{p[1]:.3f},{p[2]:.3f},{v[0]:.3f},{v[1]:.3f},"
                       f"{v[2]:.3f},{r[0]:.3f},{r[1]:.3f},{r[2]:.3f}\n")
     return out.getvalue()
-
-
-def write_inspection_flight(flight: InspectionFlight, out_dir: Any, plots: bool = True) -> list[Any]:
-    """``flight.csv``, ``captures.csv``, ``coverage.json``, ``flight.json`` and, with ``plots``,
-    ``coverage.png`` and ``replay.html``, each written atomically."""
-    import json
-    from pathlib import Path
-
-    from staghunt.inspection.files import clean
-    from staghunt.io.atomic import write_text_atomic
-
-    out = Path(out_dir)
-    files = [write_text_atomic(flight_csv(flight), out / "flight.csv"),
-             write_text_atomic(captures_csv(flight), out / "captures.csv"),
-             write_text_atomic(json.dumps(flight.coverage_json(), indent=1) + "\n", out / "coverage.json"),
-             write_text_atomic(json.dumps(clean(flight.summary()), indent=1) + "\n", out / "flight.json")]
-    if plots:
-        from staghunt.plots.inspection import coverage_figure
-        from staghunt.plots.replay import write_replay_html
-
-        files.append(coverage_figure(flight.scenario, flight.scenario.inspection, flight.photos, out / "coverage.png",
-                                     "flown"))
-        write_replay_html(out / "replay.html", flight_dict(flight))
-        files.append(out / "replay.html")
-    return files

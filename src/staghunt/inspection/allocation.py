@@ -23,13 +23,14 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from staghunt.inspection.tasks import Fleet, Task, window_of
 
-__all__ = ["Allocation", "Problem", "Route", "Visit", "greedy", "lower_bound", "solve", "solve_ortools", "time_routes"]
+__all__ = ["Allocation", "Problem", "Route", "Visit", "greedy", "improve", "lower_bound", "solve", "solve_ortools",
+           "time_routes"]
 
 TICK = 0.1
 """OR-Tools' time unit (s)."""
@@ -145,9 +146,12 @@ def lower_bound(problem: Problem) -> float:
     - each UAV's own trip from its start to its goal;
     - for each required task, the fastest capable UAV's trip start -> task -> goal (waiting for
       its window);
-    - the work shared evenly plus the least transit: the UAV with the most work has at least the
-      required work over the number of active UAVs, and it must fly out to its first task and
-      back from its last: at least the shortest such trip of any UAV to any task.
+    - the work shared evenly plus the transit it needs: for any trip length ``theta``, the tasks whose
+      shortest trip (out from a start to it and back from it to a goal, over the capable UAVs) is
+      at least ``theta`` are flown by UAVs that fly at least ``theta`` each, and the one with the
+      most of their work has at least their work over the number of active UAVs: so at least
+      ``theta + W(theta) / N``, for every ``theta`` among those trips (the smallest one gives all
+      the work plus the shortest trip).
 
     Transit is the straight line at the transit speed and a task takes its length at its speed:
     no slowing down, no detour, no stop, no transit between tasks; so it is a bound the planned
@@ -160,20 +164,25 @@ def lower_bound(problem: Problem) -> float:
     required = [t for t in tasks if t.required]
     if not required:
         return best
-    out_back = math.inf
+    trips, works = [], []
     for t in required:
         lo, _ = window_of(t)
-        one = math.inf
+        one, trip = math.inf, math.inf
         for k in t.uavs:
             if not fleet.active[k]:
                 continue
             for w in t.ways:
                 go, back = fleet.travel(k, fleet.starts[k], w.entry), fleet.travel(k, w.exit, fleet.goals[k])
-                out_back = min(out_back, float(fleet.ready[k]) + go + back)
+                trip = min(trip, float(fleet.ready[k]) + go + back)
                 one = min(one, max(float(fleet.ready[k]) + go, lo) + t.duration + back)
         best = max(best, one)
-    work = sum(t.duration for t in required)
-    return max(best, work / len(active) + out_back)
+        trips.append(trip)
+        works.append(t.duration)
+    order = np.argsort(trips)[::-1]
+    longest_first = np.cumsum(np.asarray(works)[order])
+    for theta, work in zip(np.asarray(trips)[order], longest_first):
+        best = max(best, float(theta) + float(work) / len(active))
+    return best
 
 
 def _result(problem: Problem, method: str, plan: list[list[tuple[int, int]]], dropped: list[int], started: float,
@@ -429,11 +438,83 @@ def _infeasible(problem: Problem, started: float) -> Allocation:
                       time.perf_counter() - started)
 
 
-def solve(problem: Problem, method: str = "ortools", solutions: int = 60, rounds: int = 8,
-          time_cap_s: float = 10.0) -> Allocation:
+def improve(problem: Problem, plan: list[list[tuple[int, int]]], passes: int = 200) -> list[list[tuple[int, int]]]:
+    """Local search for the makespan: move a task of the UAV that ends last (any way round) to any
+    place in another route, or exchange it with another route's task, or move it within its own
+    route, whenever that brings the two routes' later end below the makespan; until no move
+    helps. Routes are timed exactly (:func:`_route_end`), endurance and windows kept."""
+    fleet, tasks = problem.fleet, problem.tasks
+    plan = [list(r) for r in plan]
+    ends = [(_route_end(problem, k, plan[k])[0] if fleet.active[k] else 0.0) for k in range(fleet.n)]
+
+    def fits(k: int, route: list[tuple[int, int]]) -> float | None:
+        end, ok = _route_end(problem, k, route)
+        return end if ok else None
+
+    for _ in range(passes):
+        worst = max((k for k in range(fleet.n) if fleet.active[k]), key=lambda k: ends[k])
+        span = ends[worst]
+        best = None  # (new max of the two ends, k, route_worst, route_k, end_worst, end_k)
+        for i, (ti, _) in enumerate(plan[worst]):
+            rest = plan[worst][:i] + plan[worst][i + 1:]
+            e_rest = fits(worst, rest)
+            if e_rest is None:
+                continue
+            for k in tasks[ti].uavs:
+                if not fleet.active[k]:
+                    continue
+                if k == worst:
+                    for pos in range(len(rest) + 1):
+                        for wi in range(len(tasks[ti].ways)):
+                            trial = rest[:pos] + [(ti, wi)] + rest[pos:]
+                            e = fits(worst, trial)
+                            if e is not None and e < span - 1e-6 and (best is None or e < best[0]):
+                                best = (e, worst, trial, trial, e, e)
+                    continue
+                for pos in range(len(plan[k]) + 1):
+                    for wi in range(len(tasks[ti].ways)):
+                        trial = plan[k][:pos] + [(ti, wi)] + plan[k][pos:]
+                        e = fits(k, trial)
+                        if e is None:
+                            continue
+                        top = max(e, e_rest)
+                        if top < span - 1e-6 and (best is None or top < best[0]):
+                            best = (top, k, rest, trial, e_rest, e)
+                for j, (tj, wj) in enumerate(plan[k]):  # exchange
+                    if worst not in tasks[tj].uavs:
+                        continue
+                    a = plan[worst][:i] + [(tj, wj)] + plan[worst][i + 1:]
+                    b = plan[k][:j] + [(ti, plan[worst][i][1])] + plan[k][j + 1:]
+                    ea, eb = fits(worst, a), fits(k, b)
+                    if ea is None or eb is None:
+                        continue
+                    top = max(ea, eb)
+                    if top < span - 1e-6 and (best is None or top < best[0]):
+                        best = (top, k, a, b, ea, eb)
+        if best is None:
+            break
+        _, k, rw, rk, ew, ek = best
+        plan[worst], ends[worst] = rw, ew
+        if k != worst:
+            plan[k], ends[k] = rk, ek
+    return plan
+
+
+def solve(problem: Problem, method: str = "ortools", solutions: int = 30, rounds: int = 6,
+          time_cap_s: float = 1.0) -> Allocation:
     """Allocate with ``method``: ``"ortools"`` (:func:`solve_ortools` started from the greedy
-    allocation, so never worse than it) or ``"greedy"``."""
+    allocation, so never worse than it, then :func:`improve`) or ``"greedy"`` (the baseline,
+    as it is)."""
     g = greedy(problem)
     if method == "greedy":
         return g
-    return solve_ortools(problem, solutions, rounds, time_cap_s, start=g)
+    o = solve_ortools(problem, solutions, rounds, time_cap_s, start=g)
+    if not o.ok:
+        return o
+    started = time.perf_counter()
+    plan = improve(problem, [o.tasks_of(k) for k in range(problem.fleet.n)])
+    better = _result(problem, "ortools", plan, _dropped(problem, plan), started, dict(o.details))
+    if better.ok and better.makespan < o.makespan - 1e-9:
+        return replace(better, solve_time_s=o.solve_time_s + better.solve_time_s,
+                       details={**o.details, "improved_from": o.makespan})
+    return o

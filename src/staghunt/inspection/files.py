@@ -158,8 +158,13 @@ def read_timeline(data: dict[str, Any], source: str = "inspection.json") -> tupl
     outbound = [(n, u["pieces"][0]) for n, u in enumerate(uavs) if u["pieces"] and u["pieces"][0]["label"] == "outbound"]
     team: dict[int, Piece] = {}
     if outbound:
+        from staghunt.costs import CostModel
+        from staghunt.inspection.legs import leg_scenario
+
         pts = np.array([np.asarray(p["points"], dtype=float) for _, p in outbound])
-        for (n, _), piece in zip(outbound, team_pieces(0.0, pts, limits, "outbound")):
+        flying = [n for n, _ in outbound]
+        model = CostModel.from_scenario(leg_scenario(scenario, flying, pts[:, 0], pts[:, -1], "outbound"))
+        for (n, _), piece in zip(outbound, team_pieces(0.0, pts, limits, "outbound", model)):
             team[n] = piece
     out: list[tuple[Piece, ...]] = []
     for n, u in enumerate(uavs):

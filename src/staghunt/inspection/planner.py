@@ -24,13 +24,14 @@ from enum import Enum
 
 import numpy as np
 
+from staghunt.acquisition.clearance import Keepout
 from staghunt.acquisition.coverage import Photos, measure_inspection
 from staghunt.acquisition.plan import plan_captures
 from staghunt.acquisition.segments import CapturePlan
 from staghunt.costs import CostModel, to_absolute
 from staghunt.errors import FieldError
 from staghunt.inspection.allocation import Allocation, Problem, lower_bound, solve
-from staghunt.inspection.legs import solo_leg, team_leg
+from staghunt.inspection.legs import leg_scenario, solo_leg, team_leg
 from staghunt.inspection.tasks import Fleet, Task, make_tasks
 from staghunt.inspection.timeline import Piece, Timeline, capture_piece, hover_piece, path_piece, team_pieces
 from staghunt.result import PlanResult
@@ -69,9 +70,9 @@ class InspectConfig:
     """
 
     allocation: str = "ortools"
-    solutions: int = 40
-    rounds: int = 8
-    time_cap_s: float = 3.0
+    solutions: int = 30
+    rounds: int = 6
+    time_cap_s: float = 1.0
     leg_settings: SolverSettings | None = None
     solo_settings: SolverSettings = SolverSettings(particles=200, iterations=100, waypoints=5)
     certify: CertifyOptions | None = CertifyOptions()
@@ -248,18 +249,20 @@ class Flight:
         outbound = None
         if head is None and flying:
             firsts = np.array([tasks[plans[k][0][0]].ways[plans[k][0][1]].entry for k in flying])
+            firsts = self._staging(flying, firsts)
             outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", settings, self.seed,
                                 self.config.engine, self.config.certify)
             if not outbound.feasible:
                 self.problems.append(f"outbound leg: {outbound.message}")
-            for i, p in zip(flying, team_pieces(0.0, np.asarray(outbound.paths), limits, "outbound")):
+            model = CostModel.from_scenario(leg_scenario(scenario, flying, fleet.starts[flying], firsts, "outbound"))
+            for i, p in zip(flying, team_pieces(0.0, np.asarray(outbound.paths), limits, "outbound", model)):
                 pieces[i].append(p)
         for k in flying:
             here = pieces[k][-1].points[-1] if head is None else fleet.starts[k]
             t0 = pieces[k][-1].t1 if head is None else float(fleet.ready[k])
             for j, (ti, wi) in enumerate(plans[k]):
                 task, way = tasks[ti], tasks[ti].ways[wi]
-                if j > 0 or head is not None:
+                if j > 0 or head is not None or float(np.linalg.norm(here - way.entry)) > 1e-6:
                     t0 = self._leg(pieces[k], k, here, way.entry, t0, f"to task {ti}", j)
                 if task.window is not None and t0 < task.window[0]:
                     pieces[k].append(hover_piece(t0, task.window[0], way.entry, label=f"waits for the window of task {ti}"))
@@ -285,6 +288,28 @@ class Flight:
         timeline = Timeline(tuple(tuple(p) for p in pieces), fleet.names)
         return timeline, outbound, self.solo, self.problems
 
+    def _staging(self, flying: list[int], firsts: np.ndarray) -> np.ndarray:
+        """The outbound leg's goals: each UAV's first capture entry, unless it lies within the
+        separation limit (plus 2 m) of another's (two walls sharing a corner): then a safe point
+        6, 12 or 18 m above it, or as far beside it, from which it joins its capture alone."""
+        scenario = self.scenario
+        keep = Keepout(scenario, max(u.radius for u in scenario.team))
+        limit = scenario.costs.safe_distance + 2 * max(u.radius for u in scenario.team) + 2.0
+        goals = np.array(firsts, dtype=float)
+        offsets = [np.array([0.0, 0.0, dz]) for dz in (6.0, 12.0, 18.0)] + [
+            d * np.array([np.cos(a), np.sin(a), 0.0]) for d in (6.0, 12.0) for a in np.linspace(0, 2 * np.pi, 8,
+                                                                                             endpoint=False)]
+        for i in range(1, len(goals)):
+            if np.linalg.norm(goals[:i] - goals[i], axis=1).min() > limit:
+                continue
+            for off in offsets:
+                cand = firsts[i] + off
+                if (np.linalg.norm(goals[:i] - cand, axis=1).min() > limit and keep.point_ok(cand[None])[0]
+                        and keep.segment_ok(np.array([cand, firsts[i]])).all()):
+                    goals[i] = cand
+                    break
+        return goals
+
     def _leg(self, pieces: list[Piece], k: int, a: np.ndarray, b: np.ndarray, t0: float, label: str, j: int) -> float:
         """UAV ``k``'s own leg from ``a`` to ``b`` from ``t0`` appended to ``pieces``; its end time."""
         pts, leg = solo_leg(self.scenario, k, a, b, self.config.solo_settings, self.seed + 1000 * (k + 1) + j,
@@ -299,9 +324,11 @@ class Flight:
         return t0
 
     def _deconflict(self, pieces: list[list[Piece]], after: float, step: float = 0.2, rounds: int = 40) -> None:
-        """Make the later of two UAVs that would come too close while at work (after ``after``,
-        the end of the team's outbound leg) wait before the piece that brings it there (2 s at a
-        time, up to ``rounds`` times); what is left is for the check in time to report."""
+        """Make one of two UAVs that would come too close while at work (after ``after``, the end
+        of the team's outbound leg) wait before the piece that brings it there, as long as the
+        conflict would last and 1 s more: the one that moves when the other waits where it is, else
+        the one whose piece started later; up to ``rounds`` times. What is left is for the check in
+        time to report."""
         scenario = self.scenario
         limit = np.array([scenario.costs.safe_distance + 2 * u.radius for u in scenario.team])
         for _ in range(rounds):
@@ -318,15 +345,26 @@ class Flight:
                 return
             a, b, ti = (int(v[0]) for v in np.nonzero(bad))
             t_hit = ts[ti]
-            # the UAV whose current piece started later waits before it
+            near = bad[a, b, ti:]
+            last = ti + (int(np.argmin(near)) if not near.all() else len(near))
+            by = max(2.0, ts[min(last, len(ts) - 1)] - t_hit + 1.0)  # until the conflict is over, and 1 s more
             pa = next((p for p in pieces[idx[a]] if p.t0 <= t_hit <= p.t1), None)
             pb = next((p for p in pieces[idx[b]] if p.t0 <= t_hit <= p.t1), None)
             if pa is None and pb is None:
                 return
-            k, p = (idx[a], pa) if pb is None or (pa is not None and pa.t0 >= pb.t0) else (idx[b], pb)
+            # the one to wait: not one that already waits where it is (it is in the other's way), else
+            # the one whose current piece started later
+            still_a = pa is None or pa.kind == "hover"
+            still_b = pb is None or pb.kind == "hover"
+            if still_a and still_b:
+                return
+            if still_a != still_b:
+                k, p = (idx[b], pb) if still_a else (idx[a], pa)
+            else:
+                k, p = (idx[a], pa) if pa.t0 >= pb.t0 else (idx[b], pb)
             if p.label == "outbound":
                 return
-            self._delay(pieces[k], pieces[k].index(p), 2.0)
+            self._delay(pieces[k], pieces[k].index(p), by)
 
     @staticmethod
     def _delay(pieces: list[Piece], i: int, by: float) -> None:

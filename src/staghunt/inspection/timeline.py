@@ -18,7 +18,7 @@ from scipy.interpolate import CubicSpline
 
 from staghunt.acquisition.segments import CaptureSegment
 from staghunt.task import VehicleLimits
-from staghunt.trajectory import time_plan
+from staghunt.trajectory import time_and_check, time_plan
 
 __all__ = ["Piece", "Timeline", "capture_piece", "hover_piece", "path_piece", "team_pieces"]
 
@@ -85,9 +85,17 @@ def hover_piece(t0: float, t1: float, at: np.ndarray, kind: str = "hover", **kw)
     return Piece(kind, t0, t1, at[None].copy(), hold=at.copy(), **kw)
 
 
-def team_pieces(t0: float, points: np.ndarray, limits: VehicleLimits, label: str) -> list[Piece]:
-    """The team's paths ``points`` ``(n, M, 3)`` timed together from ``t0``: one piece per UAV."""
-    traj = time_plan(np.asarray(points, dtype=float), limits)
+def team_pieces(t0: float, points: np.ndarray, limits: VehicleLimits, label: str, model: object | None = None
+                ) -> list[Piece]:
+    """The team's paths ``points`` ``(n, M, 3)`` timed together from ``t0``: one piece per UAV.
+    With the leg's cost ``model``, the smoothest timing whose flight is safe in time
+    (:func:`staghunt.trajectory.time_and_check`: a curve through the waypoints may overshoot a
+    waypoint one UAV repeats while the others move; shorter sub-legs keep it on the polyline)."""
+    pts = np.asarray(points, dtype=float)
+    if model is None:
+        traj = time_plan(pts, limits)
+    else:
+        traj, _ = time_and_check(model, pts, limits, [f"UAV{i + 1}" for i in range(len(pts))])
     return [_spline_piece("leg", t0, points[i], traj.spline, i, label=label) for i in range(len(points))]
 
 
