@@ -50,6 +50,7 @@ def test_builtin_scenarios_validate(schema: dict[str, Any], name: str) -> None:
         (("ground", "kind"), "hilly"),
         (("origin", "latitude"), 91.0),
         (("vehicle", "max_speed"), 0.0),
+        (("vehicle", "airframe"), "x500"),
     ],
 )
 def test_schema_rejects(schema: dict[str, Any], path: tuple[Any, ...], value: Any) -> None:

@@ -177,7 +177,7 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
     if config.wind > 0:
         wind = DrydenGust(config.wind * np.array([math.cos(heading), math.sin(heading), 0.0]),
                           mean_alt, dt, wind_rng)
-    team = SimulatedTeam(starts, dt, wind)
+    team = SimulatedTeam(starts, dt, wind, scenario.vehicle, [u.radius for u in scenario.team])
     planner = Replanner(scenario, dyn, config, engine, replan_rng, certify_search)
     ref = ref0
     pending = [e for e in dyn.events if e.kind == "appear"]

@@ -4,9 +4,9 @@ The in-time check of an export samples the reference trajectories; this module f
 reference is what ``trajectories.csv`` holds (time, position and velocity of every UAV on one
 grid): every UAV follows the cubic Hermite curve through its samples (positions and velocities
 exactly as written; acceleration and jerk its derivatives) with the simulated multirotor of the
-closed loop (:class:`~staghunt.flight.vehicles.SimulatedTeam`: rotorpy's Hummingbird and SE(3)
-controller at ``sim_rate`` Hz), from rest at the first sample, then holds the last sample for
-``hold`` seconds. Nothing re-plans: the world is the scenario's static one (cylinders, prisms,
+closed loop (:class:`~staghunt.flight.vehicles.SimulatedTeam`: the scenario's airframe and
+rotorpy's SE(3) controller at ``sim_rate`` Hz), from rest at the first sample, then holds the
+last sample for ``hold`` seconds. Nothing re-plans: the world is the scenario's static one (cylinders, prisms,
 no-fly zones, ceiling, terrain), as in the export's in-time check.
 
 The flown states are judged like the closed loop's: least separation against ``d_s + 2 r``,
@@ -106,7 +106,7 @@ def fly_mission(scenario: Scenario, t: np.ndarray, pos: np.ndarray, vel: np.ndar
     dt = 1.0 / sim_rate
     t_end = float(t[-1]) + hold
     steps = math.ceil((t_end - t[0]) / dt)
-    team = SimulatedTeam(pos[:, 0], dt, None)
+    team = SimulatedTeam(pos[:, 0], dt, None, scenario.vehicle, [u.radius for u in scenario.team])
     ticks = float(t[0]) + np.arange(steps + 1) * dt  # (S,)
     # The reference at every step, sampled once: (4, S, N, 3) position, velocity, acceleration,
     # jerk; after the last sample, hold its position at rest.

@@ -105,7 +105,8 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         "origin": None if o is None else {
             "latitude": float(o.latitude), "longitude": float(o.longitude), "altitude": float(o.altitude)
         },
-        "vehicle": {k.name: float(getattr(scenario.vehicle, k.name)) for k in fields(VehicleLimits)},
+        "vehicle": {k.name: (getattr(scenario.vehicle, k.name) if k.name == "airframe"
+                             else float(getattr(scenario.vehicle, k.name))) for k in fields(VehicleLimits)},
     }
     if not scenario.dynamics.empty:
         out.update(dynamics_to_dict(scenario.dynamics))

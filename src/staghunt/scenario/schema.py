@@ -37,6 +37,7 @@ from staghunt.scenario.schema_dynamic import (  # noqa: F401  (re-exported: part
     EventsFile, EventTable, JibTable, MovingTable, SensingTable,
 )
 from staghunt.task import VehicleLimits
+from staghunt.task.airframes import AIRFRAME_NAMES
 
 __all__ = ["EventsFile", "ObjectivesFile", "ScenarioFile", "json_schema"]
 
@@ -254,11 +255,13 @@ class Origin(Table):
 
 
 class Vehicle(Table):
-    """Flight limits of the team's vehicles."""
+    """Flight limits of the team's vehicles, and the airframe that flies them in simulation."""
 
     max_speed: Annotated[float, Field(gt=0, description="m/s")] = VehicleLimits.max_speed
     max_acceleration: Annotated[float, Field(gt=0, description="m/s^2")] = VehicleLimits.max_acceleration
     cruise_speed: Annotated[float, Field(gt=0, description="m/s, at most max_speed")] = VehicleLimits.cruise_speed
+    airframe: Annotated[Literal[AIRFRAME_NAMES], Field(  # type: ignore[valid-type]
+        description="the simulated vehicles' airframe")] = VehicleLimits.airframe
 
     @model_validator(mode="after")
     def _cruise(self) -> "Vehicle":

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from staghunt.task.airframes import DEFAULT_AIRFRAME
+
 WEIGHT_NAMES = ("length", "threat", "altitude", "turning", "climb")
 
 
@@ -46,8 +48,11 @@ class VehicleLimits:
     ``max_speed`` (m/s) and ``max_acceleration`` (m/s^2) are hard limits that a timed
     trajectory never exceeds; ``cruise_speed`` (m/s, at most ``max_speed``) is the speed a
     mission is flown at where nothing forces it slower. The defaults fit small multirotors
-    (a DJI Mini/Mavic or a PX4/ArduPilot quadcopter with its default mission speeds)."""
+    (a DJI Mini/Mavic or a PX4/ArduPilot quadcopter with its default mission speeds).
+    ``airframe``: the simulated vehicles' airframe (a name of
+    :data:`staghunt.task.airframes.AIRFRAMES`), flown by ``fly`` and ``export --simulate``."""
 
     max_speed: float = 12.0
     max_acceleration: float = 3.0
     cruise_speed: float = 5.0
+    airframe: str = DEFAULT_AIRFRAME
