@@ -118,7 +118,8 @@ class InspectionFlight:
         names = list(self.timeline.names)
         err = np.linalg.norm(self.actual - self.reference, axis=-1)
         return {
-            "simulator": "rotorpy multirotors with rotorpy's SE3Control", "rate_hz": SIM_RATE, "wind_m_s": self.wind,
+            "simulator": "rotorpy's Multirotor and SE3Control (batched, the scenario's airframe)",
+            "rate_hz": SIM_RATE, "wind_m_s": self.wind,
             "duration_s": float(self.times[-1]) if len(self.times) else 0.0, "wall_time_s": self.wall_time_s,
             "photos": len(self.photos), "tracking_rms_m": dict(zip(names, np.sqrt((err ** 2).mean(axis=1)).tolist())),
             "min_separation_m": dict(zip(names, self.min_separation.tolist())),
@@ -179,12 +180,13 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
     gust = None
     if wind > 0:
         gust = DrydenGust(np.array([wind, 0.0, 0.0]), float(np.mean(start_pos[:, 2])), dt, rng)
-    team = SimulatedTeam(start_pos, dt, gust)
+    team = SimulatedTeam(start_pos, dt, gust, scenario.vehicle, [u.radius for u in scenario.team])
     cams = [CameraTrigger(k, insp.payloads[k].camera.min_trigger_interval_s) for k in range(n)]
     from staghunt.acquisition.plan import plan_captures
 
     log = WorkLog(make_tasks(insp, plan_captures(scenario, insp)))
     _check_tasks(log, timeline)
+    warm_up()  # the ground station has its solvers loaded before take-off, not at the first event
     alive = np.ones(n, dtype=bool)
     lost: dict[int, tuple[float, np.ndarray]] = {}
     decisions: list[Decision] = []
@@ -259,6 +261,20 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
     return InspectionFlight(scenario, timeline, T, A, R, V, photos, coverage, tuple(decisions),
                             {names[k]: v[0] for k, v in lost.items()}, sep, limit, clear,
                             float(scenario.costs.min_clearance), tuple(problems), time.perf_counter() - started, wind)
+
+
+def warm_up() -> None:
+    """Load and run OR-Tools' routing once on a two-task problem (its first use costs seconds of
+    imports and set-up that a decision in flight would otherwise pay)."""
+    from staghunt.inspection.allocation import Problem, solve
+    from staghunt.inspection.tasks import Fleet, Task, Way
+    from staghunt.acquisition.segments import CaptureSegment
+
+    seg = CaptureSegment("warm-up", "line", 0, np.array([[0.0, 0, 10], [10.0, 0, 10]]), np.zeros(2), np.zeros(2),
+                         "distance", 5.0, 5.0, 1.0, "none")
+    tasks = tuple(Task(i, "warm-up", (Way(seg),), seg.duration, None, (0,)) for i in range(2))
+    fleet = Fleet(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1), np.full(1, 1e4), np.ones(1), ("w",), np.ones(1, bool))
+    solve(Problem(tasks, fleet), "ortools", solutions=2, rounds=1, time_cap_s=0.2)
 
 
 def _check_tasks(log: WorkLog, timeline: Timeline) -> None:

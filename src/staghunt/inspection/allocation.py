@@ -284,13 +284,9 @@ def _model(problem: Problem, bound_s: float | None, span: bool):
     entries = np.array([p[0] for p in points])
     dist = np.linalg.norm(exits[:, None, :] - entries[None, :, :], axis=-1)
     callbacks = []
-    for v, k in enumerate(active):
+    for v, k in enumerate(active):  # a matrix by node, read by OR-Tools itself (no Python call per arc)
         ticks = np.rint((problem.slack * dist / float(fleet.speed[k]) + np.array(service)[:, None]) / TICK).astype(np.int64)
-
-        def transit(i: int, j: int, m: np.ndarray = ticks) -> int:
-            return int(m[manager.IndexToNode(i), manager.IndexToNode(j)])
-
-        callbacks.append(routing.RegisterTransitCallback(transit))
+        callbacks.append(routing.RegisterTransitMatrix(ticks.tolist()))
         routing.SetArcCostEvaluatorOfVehicle(callbacks[-1], v)
     ends = [float(fleet.ready[k] + fleet.endurance[k]) for k in active]
     horizon = int(math.ceil((max(ends) if np.isfinite(ends).all() else 1e6) / TICK)) + 1
@@ -438,11 +434,14 @@ def _infeasible(problem: Problem, started: float) -> Allocation:
                       time.perf_counter() - started)
 
 
-def improve(problem: Problem, plan: list[list[tuple[int, int]]], passes: int = 200) -> list[list[tuple[int, int]]]:
+def improve(problem: Problem, plan: list[list[tuple[int, int]]], passes: int = 200,
+            time_cap_s: float = 2.0) -> list[list[tuple[int, int]]]:
     """Local search for the makespan: move a task of the UAV that ends last (any way round) to any
     place in another route, or exchange it with another route's task, or move it within its own
     route, whenever that brings the two routes' later end below the makespan; until no move
-    helps. Routes are timed exactly (:func:`_route_end`), endurance and windows kept."""
+    helps (or ``passes`` moves, or ``time_cap_s``). Routes are timed exactly
+    (:func:`_route_end`), endurance and windows kept."""
+    started = time.perf_counter()
     fleet, tasks = problem.fleet, problem.tasks
     plan = [list(r) for r in plan]
     ends = [(_route_end(problem, k, plan[k])[0] if fleet.active[k] else 0.0) for k in range(fleet.n)]
@@ -452,6 +451,8 @@ def improve(problem: Problem, plan: list[list[tuple[int, int]]], passes: int = 2
         return end if ok else None
 
     for _ in range(passes):
+        if time.perf_counter() - started > time_cap_s:
+            break
         worst = max((k for k in range(fleet.n) if fleet.active[k]), key=lambda k: ends[k])
         span = ends[worst]
         best = None  # (new max of the two ends, k, route_worst, route_k, end_worst, end_k)
@@ -512,7 +513,7 @@ def solve(problem: Problem, method: str = "ortools", solutions: int = 30, rounds
     if not o.ok:
         return o
     started = time.perf_counter()
-    plan = improve(problem, [o.tasks_of(k) for k in range(problem.fleet.n)])
+    plan = improve(problem, [o.tasks_of(k) for k in range(problem.fleet.n)], time_cap_s=2.0 * time_cap_s)
     better = _result(problem, "ortools", plan, _dropped(problem, plan), started, dict(o.details))
     if better.ok and better.makespan < o.makespan - 1e-9:
         return replace(better, solve_time_s=o.solve_time_s + better.solve_time_s,

@@ -177,8 +177,8 @@ def reallocate(scenario: Scenario, inspection: Inspection, log: WorkLog, timelin
     full = fleet_of(scenario, inspection)
     fleet = replace(full, starts=where, ready=ready, endurance=full.endurance - ready, active=alive.copy())
     local = Problem(tuple(replace(x, index=i) for i, x in enumerate(fresh)), fleet, slack=SLACK)
-    alloc = solve(local, config.allocation, solutions=min(config.solutions, 20), rounds=min(config.rounds, 4),
-                  time_cap_s=min(config.time_cap_s, 0.5))
+    alloc = solve(local, config.allocation, solutions=min(config.solutions, 10), rounds=min(config.rounds, 2),
+                  time_cap_s=min(config.time_cap_s, 0.25))
     # back to the log's indices
     remap = {i: x.index for i, x in enumerate(fresh)}
     alloc = replace(alloc, routes=tuple(replace(r, visits=tuple(replace(v, task=remap[v.task]) for v in r.visits))

@@ -26,11 +26,11 @@ MARGIN = 2.0
 """Extra distance (m) kept from an obstacle beyond the body radius and the clearance."""
 
 
-def _blockers(keep: Keepout, z_lo: float, z_hi: float) -> list[Polygon]:
+def _blockers(keep: Keepout, z_lo: float, z_hi: float, margin: float) -> list[Polygon]:
     """Footprints of the obstacles a body between heights ``z_lo`` and ``z_hi`` meets, grown by
-    radius + clearance + margin."""
+    radius + clearance + ``margin``."""
     world = keep.scenario.world
-    grow = keep.radius + keep.clearance + MARGIN
+    grow = keep.radius + keep.clearance + margin
     out = [Point(c.x, c.y).buffer(c.radius + grow, quad_segs=4) for c in world.cylinders]
     for p in world.prisms:
         if p.base - grow < z_hi and p.top + grow > z_lo:
@@ -38,11 +38,13 @@ def _blockers(keep: Keepout, z_lo: float, z_hi: float) -> list[Polygon]:
     return out
 
 
-def _around(keep: Keepout, a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
-    obstacles = _blockers(keep, min(a[2], b[2]), max(a[2], b[2]))
+def _around(keep: Keepout, a: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray | None:
+    obstacles = _blockers(keep, min(a[2], b[2]), max(a[2], b[2]), margin)
     if not obstacles:
         return None
     union = unary_union(obstacles)
+    if union.contains(Point(a[:2])) or union.contains(Point(b[:2])):  # an end nearer than the margin
+        return None
     inner = prepared.prep(union.buffer(-0.01))  # an edge may run along an outline, not through it
     nodes = [a[:2], b[:2]]
     for poly in getattr(union, "geoms", [union]):
@@ -68,6 +70,10 @@ def _around(keep: Keepout, a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     xy = nodes[path[::-1]]
     s = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
     z = a[2] + (b[2] - a[2]) * s / max(s[-1], 1e-9)
+    # never lower than the site's minimum height above the ground under a corner (hills)
+    b_ = keep.scenario.world.bounds
+    g = np.asarray(keep.scenario.world.terrain.height(xy[:, 0], xy[:, 1]), dtype=float)
+    z[1:-1] = np.maximum(z[1:-1], g[1:-1] + b_.hmin + 1.0)
     return np.column_stack([xy, z])
 
 
@@ -86,7 +92,7 @@ def detour(keep: Keepout, a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     line: points ``(M, 3)``, or ``None`` if neither is safe."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     best = None
-    for path in (_around(keep, a, b), _over(keep, a, b)):
+    for path in (_around(keep, a, b, MARGIN), _around(keep, a, b, 0.25), _over(keep, a, b)):
         if path is None or not keep.segment_ok(path).all() or not keep.point_ok(path).all():
             continue
         length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())

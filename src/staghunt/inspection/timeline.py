@@ -11,10 +11,11 @@ of every UAV at ``t`` (a UAV past its last piece holds its last position).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
 
 import numpy as np
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicSpline, PPoly
 
 from staghunt.acquisition.segments import CaptureSegment
 from staghunt.task import VehicleLimits
@@ -68,15 +69,46 @@ def path_piece(kind: str, t0: float, points: np.ndarray, limits: VehicleLimits, 
     pts = np.asarray(points, dtype=float)
     if len(pts) < 2 or float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) < 1e-9:
         return hover_piece(t0, t0, pts[0], **kw)
-    return _spline_piece(kind, t0, pts, time_plan(pts[None], limits).spline, 0, **kw)
+    return _spline_piece(kind, t0, pts, _timed(pts.tobytes(), len(pts), limits), 0, **kw)
+
+
+@lru_cache(maxsize=4096)
+def _timed(points: bytes, m: int, limits: VehicleLimits) -> PPoly:
+    """The time-optimal timing of a polyline (given as bytes, ``m`` points), from rest to rest:
+    a straight hop in closed form (speed up at the acceleration limit, cruise, slow down), a
+    longer polyline by TOPP-RA. Kept, so that a re-allocation in flight times again only the legs
+    that are new (its captures are the same segments)."""
+    pts = np.frombuffer(points, dtype=float).reshape(m, 3)
+    if m == 2:
+        return _straight(pts[0], pts[1], min(limits.cruise_speed, limits.max_speed), limits.max_acceleration)
+    return time_plan(pts[None], limits).spline
+
+
+def _straight(a: np.ndarray, b: np.ndarray, v: float, acc: float) -> PPoly:
+    """Rest to rest along the segment ``a b``: a trapezoidal speed profile (triangular when too
+    short to reach ``v``) as a piecewise quadratic in time, values ``(1, 3)`` like a team spline's."""
+    length = float(np.linalg.norm(b - a))
+    u = (b - a) / length
+    ta = v / acc
+    if acc * ta * ta > length:  # never reaches v
+        ta = (length / acc) ** 0.5
+        v = acc * ta
+    tc = max((length - acc * ta * ta) / v, 0.0)
+    s1 = 0.5 * acc * ta * ta
+    # arc length s(t) per interval: s_i + v_i (t - t_i) + a_i / 2 (t - t_i)^2
+    pieces = [(ta, 0.5 * acc, 0.0, 0.0)] + ([(tc, 0.0, v, s1)] if tc > 1e-9 else []) + [(ta, -0.5 * acc, v, s1 + v * tc)]
+    breaks = np.concatenate([[0.0], np.cumsum([p[0] for p in pieces])])
+    coef_s = np.array([[p[1] for p in pieces], [p[2] for p in pieces], [p[3] for p in pieces]])  # (3 powers, intervals)
+    c = coef_s[:, :, None, None] * u[None, None, None, :]  # (3, intervals, 1, 3)
+    c[2] += a[None, None, :]
+    return PPoly(c, breaks)
 
 
 def capture_piece(t0: float, segment: CaptureSegment, limits: VehicleLimits, task: int) -> Piece:
     """A capture segment flown at its speed from ``t0`` (a viewpoint: a hover of ``dwell_s``)."""
     if segment.trigger == "points" and len(segment.points) == 1:
         return hover_piece(t0, t0 + segment.dwell_s, segment.points[0], kind="capture", segment=segment, task=task)
-    capped = VehicleLimits(max_speed=limits.max_speed, max_acceleration=limits.max_acceleration,
-                           cruise_speed=min(limits.cruise_speed, segment.speed))
+    capped = replace(limits, cruise_speed=min(limits.cruise_speed, segment.speed))
     return path_piece("capture", t0, segment.points, capped, segment=segment, task=task)
 
 
