@@ -191,8 +191,9 @@ def _overlaps(photos: Photos, camera: Camera, kind: str, depth: np.ndarray, targ
     segment (the distance flown over the footprint along the track; pairs across a facade's
     corner, where the view turns by more than 15 degrees, are left out); side, between a photo and
     the nearest photo of another segment (an area's neighbouring line: the horizontal distance
-    over the footprint across the track; a facade's neighbouring layer: the height difference
-    over the vertical footprint, for photos less than half a footprint apart along the walls)."""
+    over the footprint across the track); a facade's neighbouring layer: the least height
+    difference (over 0.5 m) to another photo less than half a footprint away along the walls,
+    over the vertical footprint."""
     pos = photos.position
     across, along = np.array([camera.footprint_m(camera.gsd_cm(max(d, 1e-3))) for d in depth]).reshape(-1, 2).T
     if kind == "facade" and camera.landscape:  # level photos: the image's width lies along the walls
@@ -213,12 +214,14 @@ def _overlaps(photos: Photos, camera: Camera, kind: str, depth: np.ndarray, targ
         if kind == "area":
             dist, _ = cKDTree(pos[others, :2]).query(pos[idx, :2])
             sides.append(1.0 - dist / across[idx])
-        else:
-            tree = cKDTree(pos[others, :2])
-            for i in idx:
-                near = others[tree.query_ball_point(pos[i, :2], 0.5 * along[i])]
-                if len(near):
-                    sides.append(np.array([1.0 - np.min(np.abs(pos[near, 2] - pos[i, 2])) / across[i]]))
+    if kind == "facade":  # the next layer: any photo up or down the wall, less than half a footprint along it
+        tree = cKDTree(pos[:, :2])
+        for i in range(len(pos)):
+            near = np.asarray(tree.query_ball_point(pos[i, :2], 0.5 * along[i]), dtype=np.intp)
+            dz = np.abs(pos[near, 2] - pos[i, 2])
+            dz = dz[dz > 0.5]
+            if len(dz):
+                sides.append(np.array([1.0 - float(dz.min()) / across[i]]))
     out = []
     for vals, want in ((fronts, target[0]), (sides, target[1])):
         v = np.concatenate(vals) if vals else np.zeros(0)

@@ -3,7 +3,8 @@ the target GSD (a QGroundControl Structure Scan, for any footprint, with the sit
 
 - The camera flies around the prism's footprint at the standoff ``d`` (the footprint grown by
   ``d`` with mitred corners), one run per wall, facing the wall square on; at an inner corner
-  both runs go on past the corner so that the corner's walls are photographed to their ends.
+  both runs go on past the corner so that the corner's walls are photographed to their ends. A
+  wall's layers make one capture, up the wall back and forth (one UAV per wall at a time).
 - Layers: the image's vertical footprint ``V`` and the side overlap set the layer spacing
   ``V (1 - side overlap)``; the layers span the walls from the lowest ground along them to the
   prism's top. Where the lowest layer cannot fly low enough (the site's minimum height above
@@ -20,7 +21,7 @@ the target GSD (a QGroundControl Structure Scan, for any footprint, with the sit
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from shapely.geometry import Polygon
@@ -103,19 +104,34 @@ def plan_facade(obj: FacadeObjective, camera: Camera, payload: Payload, keep: Ke
     segments: list[CaptureSegment] = []
     moved: list[str] = []
     unreached: list[str] = []
-    for k, zc in enumerate(heights):
-        trim = scenario.costs.safe_distance + 2 * keep.radius + 1.0
-        for loop_xy, near in _loop(poly, distance, 0.5 * horizontal, trim):
-            segs, m, u = layer.run(k, len(heights), zc, loop_xy, near, len(segments))
-            segments.extend(segs)
+    trim = scenario.costs.safe_distance + 2 * keep.radius + 1.0
+    for loop_xy, near in _loop(poly, distance, 0.5 * horizontal, trim):  # wall by wall
+        layers = []
+        for k, zc in enumerate(heights):
+            segs, m, u = layer.run(k, len(heights), zc, loop_xy, near, 0)
+            layers.append(segs)
             moved.extend(m)
             unreached.extend(u)
+        for seg in _serpentine(layers):
+            segments.append(replace(seg, index=len(segments)))
     return ObjectivePlan(
         name=obj.name, kind="facade", segments=tuple(segments), distance_m=distance, gsd_cm=gsd,
         moved=tuple(dict.fromkeys(moved)), unreached=tuple(unreached),
         details={"layers": len(heights), "layer_z": [float(h) for h in heights], "layer_spacing_m": spacing,
                  "trigger_distance_m": trigger, "wall_bottom_z": bottom, "wall_top_z": top, "speed_ms": speed,
                  "perimeter_m": poly.length})
+
+
+def _serpentine(layers: list[list[CaptureSegment]]) -> list[CaptureSegment]:
+    """A wall's layers flown as one capture, bottom up, every other layer backwards, climbing at
+    the wall's end from one to the next (photos go on: they are of the wall too): two UAVs never
+    fly two layers of one wall at once, which would put them one layer spacing apart. A layer cut
+    by an obstacle leaves the wall's layers as separate captures."""
+    if any(len(segs) != 1 for segs in layers) or len(layers) < 2:
+        return [s for segs in layers for s in segs]
+    parts = [segs[0] if i % 2 == 0 else segs[0].reversed() for i, segs in enumerate(layers)]
+    return [replace(parts[0], points=np.vstack([p.points for p in parts]), yaw=np.concatenate([p.yaw for p in parts]),
+                    pitch=np.concatenate([p.pitch for p in parts]))]
 
 
 @dataclass(frozen=True)

@@ -44,6 +44,9 @@ __all__ = ["InspectConfig", "InspectionPlan", "InspectionStatus", "plan_inspecti
 
 SLACK = 1.25
 """Planned transit time over the straight line's (legs round obstacles, accelerating, braking)."""
+SEPARATION_MARGIN = 0.5
+"""Two UAVs at work are kept this much farther apart than the separation limit (m): the team is
+checked every 0.1 s, and a vehicle strays from its reference."""
 
 
 class InspectionStatus(str, Enum):
@@ -269,7 +272,8 @@ class Flight:
                     t0 = task.window[0]
                 pieces[k].append(capture_piece(t0, way.segment, limits, ti))
                 here, t0 = way.exit, pieces[k][-1].t1
-            self._leg(pieces[k], k, here, fleet.goals[k], t0, "home", 999)  # home as soon as its work is done
+            # home as soon as its work is done, round the others' goals (where they wait once home)
+            self._leg(pieces[k], k, here, fleet.goals[k], t0, "home", 999, avoid=np.delete(fleet.goals, k, axis=0))
         start_work = after if after is not None else (pieces[flying[0]][0].t1 if flying else 0.0)
         self._deconflict(pieces, start_work)
         for k in flying:
@@ -310,9 +314,18 @@ class Flight:
                     break
         return goals
 
-    def _leg(self, pieces: list[Piece], k: int, a: np.ndarray, b: np.ndarray, t0: float, label: str, j: int) -> float:
-        """UAV ``k``'s own leg from ``a`` to ``b`` from ``t0`` appended to ``pieces``; its end time."""
-        pts, leg = solo_leg(self.scenario, k, a, b, self.config.solo_settings, self.seed + 1000 * (k + 1) + j,
+    def _leg(self, pieces: list[Piece], k: int, a: np.ndarray, b: np.ndarray, t0: float, label: str, j: int,
+             avoid: np.ndarray | None = None) -> float:
+        """UAV ``k``'s own leg from ``a`` to ``b`` from ``t0`` appended to ``pieces``; its end time.
+        ``avoid`` ``(M, 3)``: points it must pass at the separation limit (team-mates' goals)."""
+        scenario = self.scenario
+        if avoid is not None and len(avoid):
+            from staghunt.world import Cylinder
+
+            r = scenario.costs.safe_distance + scenario.team[k].radius - scenario.costs.min_clearance + 0.5
+            ghosts = tuple(Cylinder(float(p[0]), float(p[1]), max(r, 0.1), "team-mate at its goal") for p in avoid)
+            scenario = replace(scenario, world=replace(scenario.world, cylinders=scenario.world.cylinders + ghosts))
+        pts, leg = solo_leg(scenario, k, a, b, self.config.solo_settings, self.seed + 1000 * (k + 1) + j,
                             self.config.engine)
         if leg is not None:
             self.solo.append((k, leg))
@@ -323,7 +336,7 @@ class Flight:
             return pieces[-1].t1
         return t0
 
-    def _deconflict(self, pieces: list[list[Piece]], after: float, step: float = 0.2, rounds: int = 40) -> None:
+    def _deconflict(self, pieces: list[list[Piece]], after: float, step: float = 0.1, rounds: int = 40) -> None:
         """Make one of two UAVs that would come too close while at work (after ``after``, the end
         of the team's outbound leg) wait before the piece that brings it there, as long as the
         conflict would last and 1 s more: the one that moves when the other waits where it is, else
@@ -340,7 +353,7 @@ class Flight:
             pos = tl.positions(ts)  # (n, T, 3)
             d = np.linalg.norm(pos[:, None] - pos[None, :], axis=-1)  # (n, n, T)
             d[np.arange(len(idx)), np.arange(len(idx))] = math.inf
-            bad = (d <= limit[idx][:, None, None]) & (ts > after)[None, None, :]
+            bad = (d <= limit[idx][:, None, None] + SEPARATION_MARGIN) & (ts > after)[None, None, :]
             if not bad.any():
                 return
             a, b, ti = (int(v[0]) for v in np.nonzero(bad))
@@ -362,8 +375,8 @@ class Flight:
                 k, p = (idx[b], pb) if still_a else (idx[a], pa)
             else:
                 k, p = (idx[a], pa) if pa.t0 >= pb.t0 else (idx[b], pb)
-            if p.label == "outbound":
-                return
+            if p.label == "outbound" or sum(q.duration for q in pieces[k] if q.label.startswith("waits for a team")) > 120:
+                return  # waiting does not help (or no longer): the check in time reports it
             self._delay(pieces[k], pieces[k].index(p), by)
 
     @staticmethod

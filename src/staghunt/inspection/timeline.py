@@ -65,11 +65,17 @@ def _spline_piece(kind: str, t0: float, points: np.ndarray, spline: CubicSpline,
 
 
 def path_piece(kind: str, t0: float, points: np.ndarray, limits: VehicleLimits, **kw) -> Piece:
-    """One UAV's polyline ``points`` ``(M, 3)`` from rest to rest from ``t0``, within ``limits``."""
+    """One UAV's polyline ``points`` ``(M, 3)`` from rest to rest from ``t0``, within ``limits``:
+    a capture time-optimally along its points (TOPP-RA), a leg segment by segment, stopping at its
+    corners (a leg round an obstacle hugs it: a curve through its corners would cut them)."""
     pts = np.asarray(points, dtype=float)
     if len(pts) < 2 or float(np.linalg.norm(np.diff(pts, axis=0), axis=1).sum()) < 1e-9:
         return hover_piece(t0, t0, pts[0], **kw)
-    return _spline_piece(kind, t0, pts, _timed(pts.tobytes(), len(pts), limits), 0, **kw)
+    if kind == "leg" and len(pts) > 2:
+        timed = _corners(pts, min(limits.cruise_speed, limits.max_speed), limits.max_acceleration)
+    else:
+        timed = _timed(pts.tobytes(), len(pts), limits)
+    return _spline_piece(kind, t0, pts, timed, 0, **kw)
 
 
 @lru_cache(maxsize=4096)
@@ -82,6 +88,21 @@ def _timed(points: bytes, m: int, limits: VehicleLimits) -> PPoly:
     if m == 2:
         return _straight(pts[0], pts[1], min(limits.cruise_speed, limits.max_speed), limits.max_acceleration)
     return time_plan(pts[None], limits).spline
+
+
+def _corners(points: np.ndarray, v: float, acc: float) -> PPoly:
+    """Rest to rest along each segment of a polyline in turn (a stop at every corner): it never
+    cuts a corner, as a leg round an obstacle must not."""
+    polys, t = [], 0.0
+    for a, b in zip(points[:-1], points[1:]):
+        if float(np.linalg.norm(b - a)) < 1e-9:
+            continue
+        p = _straight(a, b, v, acc)
+        polys.append((t, p))
+        t += float(p.x[-1])
+    breaks = np.concatenate([[0.0]] + [t0 + p.x[1:] for t0, p in polys])
+    c = np.concatenate([p.c for _, p in polys], axis=1)
+    return PPoly(c, breaks)
 
 
 def _straight(a: np.ndarray, b: np.ndarray, v: float, acc: float) -> PPoly:
