@@ -94,7 +94,8 @@ def qgc_photos(polygon: Polygon, angle: float, spacing: float, trigger: float) -
         a = (centre[0] - half) * u + off * v
         b = (centre[0] + half) * u + off * v
         hit = polygon.exterior.intersection(LineString([a, b]))
-        pts = np.array([p.coords[0] for p in getattr(hit, "geoms", [hit]) if not p.is_empty and p.geom_type == "Point"])
+        # every crossing, a line along an edge included (QGroundControl meets the edges at its ends)
+        pts = np.array([c for g in getattr(hit, "geoms", [hit]) if not g.is_empty for c in g.coords]).reshape(-1, 2)
         if len(pts) < 2:
             continue
         s = pts @ u

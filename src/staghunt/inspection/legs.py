@@ -34,10 +34,12 @@ def _frozen(a: np.ndarray) -> np.ndarray:
     return a
 
 
-def leg_scenario(scenario: Scenario, uavs: list[int], starts: np.ndarray, goals: np.ndarray, name: str) -> Scenario:
+def leg_scenario(scenario: Scenario, uavs: list[int], starts: np.ndarray, goals: np.ndarray, name: str,
+                 reference: np.ndarray | None = None) -> Scenario:
     """``scenario`` for the UAVs ``uavs`` only, from absolute ``starts`` to absolute ``goals``
     (``(len(uavs), 3)`` each): the formation graph restricted to the edges between them, its
-    reference shape the goals."""
+    reference shape ``reference`` (absolute, ``(len(uavs), 3)``; default: the goals, as in the
+    paper)."""
     terrain = scenario.world.terrain
     team = []
     for i, k in enumerate(uavs):
@@ -48,15 +50,17 @@ def leg_scenario(scenario: Scenario, uavs: list[int], starts: np.ndarray, goals:
     inc = np.asarray(scenario.formation.incidence, dtype=float)[uavs]
     mu = np.asarray(scenario.formation.edge_weights, dtype=float)[uavs]
     keep = np.count_nonzero(inc, axis=0) == 2  # edges with both ends in the leg
-    formation = Formation(incidence=_frozen(inc[:, keep]), edge_weights=_frozen(mu[:, keep]), reference=_frozen(goals))
+    ref = goals if reference is None else reference
+    formation = Formation(incidence=_frozen(inc[:, keep]), edge_weights=_frozen(mu[:, keep]), reference=_frozen(ref))
     return replace(scenario, name=f"{scenario.name}:{name}", team=tuple(team), formation=formation)
 
 
 def team_leg(scenario: Scenario, uavs: list[int], starts: np.ndarray, goals: np.ndarray, name: str,
-             settings: SolverSettings, seed: int, engine: str = "auto", certify: CertifyOptions | None = None
-             ) -> PlanResult:
-    """The game on the leg of ``uavs`` from ``starts`` to ``goals`` (absolute, ``(n, 3)``)."""
-    leg = leg_scenario(scenario, uavs, starts, goals, name)
+             settings: SolverSettings, seed: int, engine: str = "auto", certify: CertifyOptions | None = None,
+             reference: np.ndarray | None = None) -> PlanResult:
+    """The game on the leg of ``uavs`` from ``starts`` to ``goals`` (absolute, ``(n, 3)``), the
+    formation's reference shape ``reference`` (default: the goals)."""
+    leg = leg_scenario(scenario, uavs, starts, goals, name, reference)
     return plan(leg, method="game", seed=seed, settings=settings, engine=engine, certify=certify)
 
 

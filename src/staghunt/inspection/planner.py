@@ -204,6 +204,8 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
     coverage = tuple(measure_inspection(inspection, scenario, plan.photos(), cameras))
     times["coverage_s"] = time.perf_counter() - t
     status, message = InspectionStatus.PLANNED, f"planned: makespan {timeline.end:.0f} s"
+    if fly.notes:
+        message += "; " + "; ".join(fly.notes)
     if problems:
         status, message = InspectionStatus.INFEASIBLE, "infeasible: " + "; ".join(problems[:3])
     elif not safety.safe:
@@ -246,6 +248,7 @@ class Flight:
         else:
             flying = [k for k in range(scenario.n_uavs) if fleet.active[k]]
         self.problems: list[str] = []
+        self.notes: list[str] = []
         self.solo: list[tuple[int, PlanResult]] = []
         pieces: list[list[Piece]] = [list(head[k]) for k in range(scenario.n_uavs)] if head is not None else \
             [[] for _ in range(scenario.n_uavs)]
@@ -253,13 +256,26 @@ class Flight:
         if head is None and flying:
             firsts = np.array([tasks[plans[k][0][0]].ways[plans[k][0][1]].entry for k in flying])
             firsts = self._staging(flying, firsts)
+            # the team leaves together in its take-off formation (the reference shape: the starts), and
+            # spreads out to its first captures at the end of the leg
             outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", settings, self.seed,
-                                self.config.engine, self.config.certify)
-            if not outbound.feasible:
-                self.problems.append(f"outbound leg: {outbound.message}")
-            model = CostModel.from_scenario(leg_scenario(scenario, flying, fleet.starts[flying], firsts, "outbound"))
-            for i, p in zip(flying, team_pieces(0.0, np.asarray(outbound.paths), limits, "outbound", model)):
-                pieces[i].append(p)
+                                self.config.engine, self.config.certify, reference=fleet.starts[flying])
+            if not outbound.feasible:  # once more with twice the budget
+                bigger = settings.with_(particles=2 * settings.particles, iterations=2 * settings.iterations)
+                outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", bigger, self.seed + 1,
+                                    self.config.engine, self.config.certify, reference=fleet.starts[flying])
+            if outbound.feasible:
+                model = CostModel.from_scenario(leg_scenario(scenario, flying, fleet.starts[flying], firsts, "outbound",
+                                                             fleet.starts[flying]))
+                for i, p in zip(flying, team_pieces(0.0, np.asarray(outbound.paths), limits, "outbound", model)):
+                    pieces[i].append(p)
+            else:  # no feasible joint plan found: each leaves alone, the later ones waiting (deconfliction)
+                self.notes.append(f"outbound: the game found no feasible plan ({outbound.message}); the UAVs fly "
+                                  "their own legs to their first captures, waiting for one another")
+                for k, goal in zip(flying, firsts):
+                    self._leg(pieces[k], k, fleet.starts[k], goal, 0.0, "to the first capture", 0)
+                    if not pieces[k]:
+                        pieces[k].append(hover_piece(0.0, 0.0, fleet.starts[k], label="to the first capture"))
         for k in flying:
             here = pieces[k][-1].points[-1] if head is None else fleet.starts[k]
             t0 = pieces[k][-1].t1 if head is None else float(fleet.ready[k])
@@ -274,7 +290,8 @@ class Flight:
                 here, t0 = way.exit, pieces[k][-1].t1
             # home as soon as its work is done, round the others' goals (where they wait once home)
             self._leg(pieces[k], k, here, fleet.goals[k], t0, "home", 999, avoid=np.delete(fleet.goals, k, axis=0))
-        start_work = after if after is not None else (pieces[flying[0]][0].t1 if flying else 0.0)
+        start_work = after if after is not None else (pieces[flying[0]][0].t1 if flying and outbound is not None and
+                                                      outbound.feasible else 0.0)
         self._deconflict(pieces, start_work)
         for k in flying:
             for p in pieces[k]:

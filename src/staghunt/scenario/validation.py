@@ -60,10 +60,18 @@ def plain(value: Any) -> Any:
     return value
 
 
+_UNION_TAGS = {"area", "facade", "point"}
+"""The objectives' kinds: pydantic puts the tag of a tagged union in the error's location
+(``objectives[0].area.gsd_cm``); the key path leaves it out."""
+
+
 def key_path(loc: tuple[int | str, ...]) -> str:
-    """``("team", 2, "start")`` -> ``"team[2].start"``."""
+    """``("team", 2, "start")`` -> ``"team[2].start"``; ``("objectives", 0, "area", "gsd_cm")``
+    -> ``"objectives[0].gsd_cm"``."""
     out = ""
-    for part in loc:
+    for i, part in enumerate(loc):
+        if part in _UNION_TAGS and i > 0 and isinstance(loc[i - 1], int) and i + 1 < len(loc):
+            continue
         out += f"[{part}]" if isinstance(part, int) else (f".{part}" if out else str(part))
     return out
 
