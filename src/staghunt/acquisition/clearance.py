@@ -72,15 +72,17 @@ def point_clearance(scenario: Scenario, points: np.ndarray, radius: float) -> np
 @dataclass(frozen=True, eq=False)
 class Keepout:
     """The rules a capture position must meet, for a body of ``radius``: clearance of at least
-    ``clearance`` (the scenario's minimum clearance) to every obstacle and the ceiling, inside the
-    site, and a height above ground within the site's band."""
+    ``clearance`` (the scenario's minimum clearance plus ``margin``) to every obstacle and the
+    ceiling, inside the site, and a height above ground within the site's band."""
 
     scenario: Scenario
     radius: float
+    margin: float = 0.0
 
     @property
     def clearance(self) -> float:
-        return float(self.scenario.costs.min_clearance)
+        """The scenario's minimum clearance plus ``margin`` (a capture's room for tracking errors)."""
+        return float(self.scenario.costs.min_clearance) + self.margin
 
     def heights(self, points: np.ndarray) -> np.ndarray:
         """``(M,)`` height above ground of absolute ``points`` ``(M, 3)``."""

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.sparse import csr_matrix
 from scipy.sparse.csgraph import dijkstra
-from shapely import prepared
+import shapely
 from shapely.geometry import LineString, Point, Polygon
 from shapely.ops import unary_union
 
@@ -45,21 +45,19 @@ def _around(keep: Keepout, a: np.ndarray, b: np.ndarray, margin: float) -> np.nd
     union = unary_union(obstacles)
     if union.contains(Point(a[:2])) or union.contains(Point(b[:2])):  # an end nearer than the margin
         return None
-    inner = prepared.prep(union.buffer(-0.01))  # an edge may run along an outline, not through it
+    inner = union.buffer(-0.01)  # an edge may run along an outline, not through it
+    shapely.prepare(inner)
     nodes = [a[:2], b[:2]]
     for poly in getattr(union, "geoms", [union]):
         nodes.extend(np.asarray(poly.exterior.coords)[:-1])
     nodes = np.array(nodes)
     n = len(nodes)
-    rows, cols, vals = [], [], []
-    for i in range(n):
-        for j in range(i + 1, n):
-            seg = LineString([nodes[i], nodes[j]])
-            if not inner.intersects(seg):
-                d = float(np.hypot(*(nodes[j] - nodes[i])))
-                rows += [i, j]
-                cols += [j, i]
-                vals += [d, d]
+    i, j = np.triu_indices(n, k=1)
+    lines = shapely.linestrings(np.stack([nodes[i], nodes[j]], axis=1))  # every pair at once
+    free = ~shapely.intersects(inner, lines)
+    i, j = i[free], j[free]
+    d = np.hypot(*(nodes[j] - nodes[i]).T)
+    rows, cols, vals = np.concatenate([i, j]), np.concatenate([j, i]), np.concatenate([d, d])
     graph = csr_matrix((vals, (rows, cols)), shape=(n, n))
     dist, pred = dijkstra(graph, indices=0, return_predecessors=True)
     if not np.isfinite(dist[1]):
