@@ -89,6 +89,22 @@ def flight_row(f) -> dict:
             "decisions": [{"time": d.time, "latency_s": d.latency_s, "tasks": d.tasks_left} for d in f.decisions]}
 
 
+def flat_ratio(scenario) -> dict:
+    """The same surveys planned over level ground: QGroundControl's count does not see the
+    terrain, ours flies lower where the ground in a photo falls away (the GSD guarantee)."""
+    from staghunt.acquisition.plan import plan_objective
+    from staghunt.task.objectives import AreaObjective
+    from staghunt.world import Terrain
+
+    flat = replace(scenario, world=replace(scenario.world, terrain=Terrain()))
+    out = {}
+    for o in scenario.inspection.objectives:
+        if isinstance(o, AreaObjective):
+            p = plan_objective(flat, flat.inspection, o)
+            out[o.name] = {"photos": p.photos, "qgc": p.qgc_photos, "ratio": p.photos / p.qgc_photos}
+    return out
+
+
 def small_instances(plan, rng: np.random.Generator, count: int, long_s: float) -> list[dict]:
     """The allocation (``solve``, as the planner runs it) against OR-Tools' span model with
     ``long_s`` seconds on random sub-problems of the plan's tasks."""
@@ -142,6 +158,7 @@ def main() -> int:
                    "safe_in_time": plan.safety.safe,
                    "photos_vs_qgc": {o.name: {"photos": o.photos, "qgc": o.qgc_photos, "ratio": o.photos / o.qgc_photos}
                                      for o in plan.captures.objectives if o.qgc_photos},
+                   "photos_vs_qgc_flat_ground": flat_ratio(scenario),
                    "planned_coverage": coverage_row(list(plan.coverage))}
             print(f"{name} seed {seed}: planned in {run['planning_wall_s']:.1f} s wall ({run['planning_cpu_s']:.1f} s CPU), "
                   f"makespan {plan.makespan:.0f} s, allocation {plan.allocation.makespan:.0f} s, bound "
@@ -217,9 +234,10 @@ def table(report: dict) -> str:
          lambda t: runs(t, lambda r: f"{facades(r, 'flight_wind_0'):.2%}")),
         ("facades: the same in 5 m/s wind (>= 95 %)",
          lambda t: runs(t, lambda r: f"{facades(r, 'flight_wind_5'):.2%}" if "flight_wind_5" in r else "-")),
-        ("photos / QGroundControl's for the survey (<= 1.10)",
+        ("photos / QGroundControl's for the survey (<= 1.10): the hilly site; the same polygon over level ground",
          lambda t: runs(t, lambda r: ", ".join(f"{v['ratio']:.2f} ({v['photos']} / {v['qgc']})"
-                                               for v in r["photos_vs_qgc"].values()))),
+                                               for v in r["photos_vs_qgc"].values()) + "; " + ", ".join(
+             f"{v['ratio']:.2f} ({v['photos']} / {v['qgc']})" for v in r["photos_vs_qgc_flat_ground"].values()))),
         ("least trigger interval flown (camera: 0.7 s)",
          lambda t: runs(t, lambda r: f"{r['flight_wind_0']['least_trigger_interval_s']:.2f} s")),
         ("motion blur at the flown speed, 1/1000 s (<= 0.5 px; max)",

@@ -168,9 +168,21 @@ def plan_area(obj: AreaObjective, camera: Camera, keep: Keepout, cruise_speed: f
 
     Each line's trigger distance, and the spacing to the next line, come from the footprint at
     the least depth under the line (terrain following keeps the camera at most ``d`` above the
-    ground it sees, so nearer where the ground rises): the overlaps hold everywhere."""
+    ground it sees, so nearer where the ground rises): the overlaps hold everywhere. Without an
+    ``angle_deg`` the lines run along the polygon's long side or across it, whichever needs fewer
+    photos (on hilly ground the slope, not only the shape, decides)."""
+    if obj.angle_deg is not None:
+        return _plan_area(obj, math.radians(obj.angle_deg), camera, keep, cruise_speed, max_blur_px, relief_fraction,
+                          max_climb_deg)
+    long_side = line_angle(Polygon(obj.polygon))
+    plans = [_plan_area(obj, a, camera, keep, cruise_speed, max_blur_px, relief_fraction, max_climb_deg)
+             for a in (long_side, long_side + 0.5 * math.pi)]
+    return min(plans, key=lambda p: (len(p.unreached), p.photos))
+
+
+def _plan_area(obj: AreaObjective, angle: float, camera: Camera, keep: Keepout, cruise_speed: float,
+               max_blur_px: float, relief_fraction: float, max_climb_deg: float) -> ObjectivePlan:
     poly = Polygon(obj.polygon)
-    angle = math.radians(obj.angle_deg) if obj.angle_deg is not None else line_angle(poly)
     u, v = _frame(angle)
     bounds = keep.scenario.world.bounds
     distance = min(camera.distance_m(obj.gsd_cm), bounds.hmax)
