@@ -70,7 +70,7 @@ def valid() -> dict[str, Any]:
 
 
 def test_builtin_names() -> None:
-    assert builtin_names() == ["scenario1", "scenario2", "site_grid24", "site_wedge"]
+    assert builtin_names() == ["scenario1", "scenario2", "site_grid24", "site_inspection", "site_inspection3", "site_wedge"]
     assert builtin_path("scenario1").is_file()
     with pytest.raises(ScenarioError, match="scenario1"):
         builtin_path("nope")
