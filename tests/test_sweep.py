@@ -272,9 +272,10 @@ def test_unreachable_scheduler(tmp_path, capsys):
     code = run_cli(["sweep", str(spec), "--out", str(tmp_path / "o"), "--scheduler",
                     f"tcp://127.0.0.1:{_free_port()}", "--connect-timeout", "1"])
     assert code == 2 and time.perf_counter() - t0 < 20
-    err = capsys.readouterr().err
-    assert err.startswith("staghunt: error: cannot reach the Dask scheduler at tcp://127.0.0.1:")
-    assert err.count("\n") == 1 and "Traceback" not in err
+    lines = capsys.readouterr().err.splitlines()
+    # The size of the study first (before any work), then the one error line.
+    assert len(lines) == 2 and lines[0].endswith("4 tasks, 0 already in " + str(tmp_path / "o" / RESULTS) + ", 4 to run")
+    assert lines[1].startswith("staghunt: error: cannot reach the Dask scheduler at tcp://127.0.0.1:")
 
 
 # ------------------------------------------------------------------------------------------------
