@@ -80,11 +80,11 @@ class ResultStore:
 
     def _key_column(self, parts: list[Path] | None = None) -> pa.ChunkedArray:
         """The ``key`` column of every row of ``parts`` (default: all), read in one go."""
-        import pyarrow.dataset as ds
-
         parts = self.parts() if parts is None else parts
         if not parts:
             return pa.chunked_array([], type=pa.string())
+        import pyarrow.dataset as ds
+
         return ds.dataset([str(p) for p in parts], format="parquet").to_table(columns=["key"]).column("key")
 
     def _conform(self, table: pa.Table) -> pa.Table:
