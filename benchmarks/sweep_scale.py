@@ -136,20 +136,27 @@ def first_task(spec_path: Path, out: Path, src: Path, timeout: float = 600) -> d
     from SIGINT to the exit."""
     env = dict(os.environ, PYTHONPATH=str(src), PYTHONUNBUFFERED="1")
     t0 = time.perf_counter()
+    # SIGINT back to its default in the child: a shell ignores it in background jobs, and the
+    # child would inherit that (and run to the end).
     p = subprocess.Popen([sys.executable, "-m", "staghunt", "sweep", str(spec_path), "--out", str(out),
-                          "--workers", "2", "--no-figures"], env=env, stderr=subprocess.PIPE, text=True)
+                          "--workers", "2", "--no-figures"], env=env, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     got: dict[str, float] = {}
     assert p.stderr is not None
     for line in p.stderr:
         now = time.perf_counter() - t0
         if "first_line_s" not in got:
             got["first_line_s"] = now
+        if "Traceback" in line or "ERROR" in line:
+            got["errors"] = got.get("errors", 0) + 1
         if "sweep [" in line:
             got["first_task_s"] = now
             p.send_signal(signal.SIGINT)
             t1 = time.perf_counter()
-            p.communicate(timeout=timeout)
+            rest = p.communicate(timeout=timeout)[1]
             got["stop_s"] = time.perf_counter() - t1
+            got["errors"] = got.get("errors", 0) + rest.count("Traceback") + rest.count(" ERROR ")
+            got["exit"] = p.returncode
             return got
         if now > timeout:
             break
@@ -220,7 +227,8 @@ def main() -> None:
                 records.append({"size": size, "shape": "seeds", "code": code, "cluster": got, "load": load()})
                 print(f"{size:>9,} tasks, {code}: first line after {got['first_line_s']:.1f} s, first finished "
                       f"task after {got['first_task_s']:.1f} s (local cluster of 2 workers, its start-up "
-                      f"included); Ctrl-C took {got['stop_s']:.1f} s; load {load()}", flush=True)
+                      f"included); Ctrl-C took {got['stop_s']:.1f} s (exit {got['exit']}, "
+                      f"{got['errors']} traceback or error lines); load {load()}", flush=True)
     if args.json:
         Path(args.json).write_text(json.dumps({"records": records}, indent=2) + "\n")
 

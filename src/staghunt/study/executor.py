@@ -113,7 +113,9 @@ class DaskExecutor(Generic[T, R]):
         from distributed import Client, LocalCluster
 
         if not os.environ.get("STAGHUNT_DEBUG"):
-            for name in ("distributed", "tornado"):
+            # tornado.application: Dask's logging configuration sets it apart, to "error"; a
+            # Ctrl-C in the middle of a client call made it print a traceback.
+            for name in ("distributed", "tornado", "tornado.application"):
                 logging.getLogger(name).setLevel(logging.CRITICAL)
         self.cluster = None
         if address is not None:
