@@ -19,7 +19,6 @@ workload at best (the ceiling the Dask ratio is to be read against).
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import statistics
@@ -64,10 +63,9 @@ def part(spec_path: Path, index: int, parts: int, out: Path, at: float) -> None:
     from staghunt.study.sweep import run_sweep, warm_engine
 
     sweep = expand(*load_spec(spec_path))
-    sweep = dataclasses.replace(sweep, tasks=sweep.tasks[index::parts])
     warm_engine(sweep)
     time.sleep(max(0.0, at - time.time()))
-    s = run_sweep(sweep, out, InlineExecutor())
+    s = run_sweep(sweep, out, InlineExecutor(), tasks=sweep.tasks[index::parts])
     print(json.dumps({"done": s.done, "failed": s.failed, "elapsed_s": s.elapsed_s}))
 
 

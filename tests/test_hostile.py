@@ -1179,6 +1179,9 @@ def test_export_out_empty_is_refused(tmp_path, capsys, result_file, monkeypatch)
 FLY_SMALL = str(Path(__file__).parent / "data" / "flight_small.toml")
 FLY_TINY = ["--particles", "8", "--iterations", "2", "--engine", "numpy", "--no-plots", "--quiet"]
 APPEAR = "[[events]]\ntime = 1.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\n"
+MOVING = "[[moving]]\nname = 't'\nradius = {radius}\npath = [[10, 30], [50, 30]]\nspeed = {speed}\n"
+JIB = ("[[jibs]]\nname = 'crane'\npivot = {pivot}\nlength = {length}\nwidth = 1.0\nbase = {base}\nheight = 22.0\n"
+       "angle_from = 0.0\nangle_to = 90.0\nrate = {rate}\n")
 
 FLY_CASES = {
     "unknown_key": (APPEAR + "colour = 'red'\n", r"events\[0\]\.colour: unknown key"),
@@ -1197,6 +1200,26 @@ FLY_CASES = {
                                      + APPEAR.replace("time = 1.0", "time = 2.0") + "name = 'p'\n",
                                      r"'p' disappears at t = 1 s, before it appears at t = 2 s"),
     "utf16": (("\ufeff" + APPEAR).encode("utf-16"), r"not UTF-8"),
+    # Limits named where the value is read (issue 40), one or more per kind of table: a speed of
+    # 1e9 m/s was refused as "out of memory; use a smaller budget".
+    "moving_speed_1e9": (MOVING.format(speed="1e9", radius="2.0"),
+                         r"ev\.toml: moving\[0\]\.speed: must lie in \(0, 50\] m/s, got 1000000000$"),
+    "moving_speed_1e9_reverse": (MOVING.format(speed="1e9", radius="2.0") + "repeat = 'reverse'\n",
+                                 r"moving\[0\]\.speed: must lie in \(0, 50\] m/s"),
+    "moving_over_a_start": (MOVING.format(speed="2.0", radius="1e5"),
+                            r"moving\[0\]: covers UAV2's start \(5, 23\) at take-off: it waits at path\[0\] = "
+                            r"\(10, 30\) with radius 100000 m"),
+    "jib_tip_faster_than_50": (JIB.format(pivot="[5.0, 0.0]", length="40.0", rate="89.0", base="20.0"),
+                               r"jibs\[0\]\.rate: the jib's far corner \(40\.0 m from the pivot\) would move at "
+                               r"62\.1 m/s, above 50 m/s: rate must be <= 71\.6 deg/s here, got 89"),
+    "jib_rate_above_90": (JIB.format(pivot="[30.0, 5.0]", length="8.0", rate="120.0", base="20.0"),
+                          r"jibs\[0\]\.rate: must lie in \(0, 90\], got 120"),
+    "jib_over_a_start": (JIB.format(pivot="[4.0, 15.0]", length="8.0", rate="5.0", base="5.0"),
+                         r"jibs\[0\]: covers UAV1's start at take-off"),
+    "event_radius_zero": (APPEAR.replace("radius = 2.0", "radius = 0.0"), r"events\[0\]\.radius: must be > 0, got 0"),
+    "sensing_rate_1000": ("[sensing]\nrate = 1000.0\n", r"sensing\.rate: must lie in \[10, 100\], got 1000"),
+    "sensing_noise_100": ("[sensing]\nposition_noise = 100.0\n",
+                          r"sensing\.position_noise: must lie in \[0, 10\] m, got 100"),
 }
 
 
@@ -1206,8 +1229,32 @@ def test_fly_events_refused_before_any_simulation(tmp_path, capsys, case):
     text, expect = FLY_CASES[case]
     ev = write(tmp_path, "ev.toml", text)
     out = tmp_path / "flight"
-    refused(capsys, "fly", FLY_SMALL, "--events", str(ev), "--out", str(out), *FLY_TINY, expect=expect)
+    err = refused(capsys, "fly", FLY_SMALL, "--events", str(ev), "--out", str(out), *FLY_TINY, expect=expect)
+    assert "memory" not in err and "budget" not in err
     assert not out.exists()
+
+
+def test_scenario_motion_limits_named_where_read(tmp_path, capsys):
+    """The same tables in a scenario file: refused when the scenario is read (``show``, ``plan``)."""
+    scenario = Path(FLY_SMALL).read_text()
+    p = write(tmp_path, "s.toml", scenario + MOVING.format(speed="1e9", radius="2.0"))
+    refused(capsys, "show", str(p), expect=r"s\.toml: moving\[0\]\.speed: must lie in \(0, 50\] m/s")
+    p = write(tmp_path, "s.toml", scenario + MOVING.format(speed="2.0", radius="1e5"))
+    refused(capsys, "plan", str(p), *TINY, "--out", str(tmp_path / "out"), expect=r"moving\[0\]: covers UAV2's start")
+    assert not (tmp_path / "out").exists()
+
+
+def test_out_of_memory_does_not_blame_the_budget(capsys, monkeypatch):
+    """A MemoryError that no check foresaw says what it was, not that the budget is too large."""
+    import staghunt.scenario
+
+    def boom(*args, **kwargs):
+        raise MemoryError("Unable to allocate 87.3 GiB for an array with shape (11714449757,)")
+
+    monkeypatch.setattr(staghunt.scenario, "scenario_to_dict", boom)
+    code, _, err = run(capsys, "show", "scenario1")
+    assert code == 2 and "budget" not in err
+    assert err.startswith("staghunt: error: out of memory (Unable to allocate 87.3 GiB for an array"), err
 
 
 def test_fly_events_file_that_is_a_directory(tmp_path, capsys):

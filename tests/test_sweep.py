@@ -114,6 +114,142 @@ def test_expand_grid_and_keys(tmp_path):
     assert not {t.key for t in other.tasks} & {t.key for t in sweep.tasks}
 
 
+ALL_AXES = """
+[grid]
+beta = [0.5, 2]
+weights = [[1, 1, 1, 1, 1], [2, 1, 1, 1, 3]]
+uav.2.beta = [1, 10]
+uav.UAV3.weights = [[1, 2, 1, 1, 1], [1, 1, 1, 2, 1]]
+waypoints = [4, 5]
+iterations = [3, 5]
+"""
+
+
+def test_tasks_on_demand_are_those_of_every_combination_validated(tmp_path):
+    """Every task, made on demand from the checked values, is the task of its combination of
+    overrides applied to the scenario's data and validated whole (what expand did for every
+    combination before issue 40): the same scenario, run and labels, and the same key, so a
+    results.parquet written before keeps its tasks done."""
+    from staghunt.api import check_plan
+    from staghunt.io.result_json import settings_to_dict
+    from staghunt.scenario import builtin_path, load_scenario, scenario_from_dict, scenario_to_dict
+    from staghunt.study.grid import task_key
+
+    text = TINY.format(seeds="1,7", particles=10, iterations=5).replace("[grid]\nbeta = [0.5, 2]\n", ALL_AXES)
+    sweep = expand(*load_spec(_spec(tmp_path, text)))
+    assert len(sweep) == len(sweep.tasks) == 2 ** 6 * 2 * 2
+    keys = list(sweep.keys())
+    assert len(set(keys)) == len(keys)
+    base = scenario_to_dict(load_scenario("scenario1"))
+    base["solver"].update(particles=10, iterations=5, waypoints=4)
+    for i in range(0, len(sweep), 7):
+        task = sweep.tasks[i]
+        labels = dict(task.labels)
+        data = json.loads(json.dumps(base))
+        for u in data["team"]:
+            u["beta"], u["weights"] = labels["beta"], labels["weights"]
+        data["team"][1]["beta"] = labels["uav.2.beta"]
+        data["team"][2]["weights"] = labels["uav.UAV3.weights"]
+        data["solver"].update(waypoints=labels["waypoints"], iterations=labels["iterations"])
+        whole = scenario_from_dict(data, name="scenario1", base_dir=builtin_path("scenario1").parent)
+        assert scenario_to_dict(task.request.scenario) == scenario_to_dict(whole)
+        plain = json.loads(json.dumps(scenario_to_dict(whole), default=str))
+        assert task.key == keys[i] == task_key(plain, labels["method"], labels["seed"],
+                                               settings_to_dict(whole.solver), sweep.certify, "numba")
+        checked = check_plan(whole, labels["method"], labels["seed"], whole.solver, "numba", 1, sweep.certify)
+        assert (task.request.method, task.request.seed, task.request.settings) == (checked.method, checked.seed,
+                                                                                    checked.settings)
+        assert task.request.estimate == checked.estimate and task.request.certify == checked.certify
+
+
+def _spec(directory: Path, text: str, name: str = "s.toml") -> Path:
+    path = directory / name
+    path.write_text(text)
+    return path
+
+
+def test_a_spec_beyond_the_limit_is_refused_at_once_with_its_count(tmp_path, capsys):
+    from staghunt.study.spec import MAX_TASKS
+
+    assert MAX_TASKS == 1_000_000
+    # 1 x 6 x 100,000 x 2 = 1,200,000 tasks; the scenario is never read (it does not exist).
+    text = TINY.format(seeds="1-100000", particles=10, iterations=5).replace('"scenario1"', '"nosuch.toml"')
+    text = text.replace("beta = [0.5, 2]", "beta = [0.5, 1, 2, 3, 4, 5]")
+    t0 = time.process_time()
+    assert run_cli(["sweep", str(_spec(tmp_path, text)), "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err == ("staghunt: error: the spec makes 1,200,000 tasks (1 scenario x 6 grid combinations x 100,000 "
+                   "seeds x 2 methods); a sweep runs at most 1,000,000: split it into several specs (e.g. by "
+                   "seeds), each with its own --out\n")
+    assert time.process_time() - t0 < 5 and not (tmp_path / "o").exists()
+    many = ",".join(f"{k * 100_000}-{k * 100_000 + 99_999}" for k in range(11))  # 1,100,000 seeds
+    with pytest.raises(SpecError, match=r"^seeds: more than 1,000,000 seeds$"):
+        expand(*load_spec(_spec(tmp_path, TINY.format(seeds=many, particles=10, iterations=5))))
+
+
+@pytest.mark.parametrize("grid, named", [
+    ("beta = [0.5, 2, 0.5]", "grid.beta: the value 0.5 is listed twice"),
+    ("waypoints = [4, 4]", "grid.waypoints: the value 4 is listed twice"),
+    ("beta = [0.5, 2]\nuav.1.beta = [1]\nuav.2.beta = [1]\nuav.3.beta = [1]",
+     "grid.beta: changes nothing in scenario 'scenario1'"),
+    ("particles = [10, 1000000000]", "scenario 'scenario1' with particles = 1000000000, method 'game': "),
+])
+def test_grid_values_that_would_make_tasks_twice_or_cannot_run(tmp_path, grid, named):
+    text = TINY.format(seeds="1", particles=10, iterations=5).replace("beta = [0.5, 2]", grid)
+    with pytest.raises(SpecError) as exc:
+        expand(*load_spec(_spec(tmp_path, text)))
+    assert str(exc.value).startswith(named), str(exc.value)
+
+
+def test_pending_and_a_subset(tmp_path):
+    """pending() names exactly the tasks whose key is not stored, without making the others."""
+    sweep = expand(*load_spec(write_spec(tmp_path, seeds="1-3")))  # 12 tasks
+
+    def fake(task):
+        return TaskOutcome(task.key, {"status": "feasible", "J": [1.0, 2.0, 3.0]})
+
+    first = run_sweep(sweep, tmp_path / "o", task_fn=fake, tasks=sweep.tasks[::3])
+    assert (first.total, first.done) == (4, 4)
+    from staghunt.study.sweep import open_stores, pending
+
+    results, _ = open_stores(tmp_path / "o", sweep)
+    todo = pending(sweep, results)
+    assert list(todo.indices) == [i for i in range(12) if i % 3]
+    assert {t.key for t in todo} == set(list(sweep.keys())) - results.keys()
+    second = run_sweep(sweep, tmp_path / "o", task_fn=fake)
+    assert (second.skipped, second.done) == (4, 8)
+
+
+def test_batches_in_flight_stay_bounded():
+    """The Dask executor reads (and submits) the tasks batch by batch: never more than two
+    batches ahead of what it has handed back, and every task exactly once."""
+    import operator
+    from collections.abc import Sequence
+
+    from staghunt.study.executor import DaskExecutor
+
+    class Lazy(Sequence):
+        def __init__(self, n):
+            self.n, self.read = n, 0
+
+        def __len__(self):
+            return self.n
+
+        def __getitem__(self, i):
+            self.read = max(self.read, i + 1)
+            return i
+
+    tasks = Lazy(300)
+    got = {}
+    with DaskExecutor(workers=2) as ex:
+        batch = ex.batch_size()
+        assert batch == 8
+        for n, (i, outcome) in enumerate(ex.map_unordered(operator.neg, tasks), 1):
+            assert tasks.read - n <= 2 * batch, (tasks.read, n)
+            got[i] = outcome
+    assert got == {i: -i for i in range(300)}
+
+
 def test_parse_seeds():
     assert parse_seeds("1-3,8,2") == (1, 2, 3, 8)
     with pytest.raises(SpecError):
@@ -272,9 +408,10 @@ def test_unreachable_scheduler(tmp_path, capsys):
     code = run_cli(["sweep", str(spec), "--out", str(tmp_path / "o"), "--scheduler",
                     f"tcp://127.0.0.1:{_free_port()}", "--connect-timeout", "1"])
     assert code == 2 and time.perf_counter() - t0 < 20
-    err = capsys.readouterr().err
-    assert err.startswith("staghunt: error: cannot reach the Dask scheduler at tcp://127.0.0.1:")
-    assert err.count("\n") == 1 and "Traceback" not in err
+    lines = capsys.readouterr().err.splitlines()
+    # The size of the study first (before any work), then the one error line.
+    assert len(lines) == 2 and lines[0].endswith("4 tasks, 0 already in " + str(tmp_path / "o" / RESULTS) + ", 4 to run")
+    assert lines[1].startswith("staghunt: error: cannot reach the Dask scheduler at tcp://127.0.0.1:")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -386,3 +523,25 @@ def test_store_drops_temporary_parts_and_compacts_duplicate_keys(tmp_path):
     data = pq.read_table(store.path).to_pydict()
     assert data == {"key": ["a", "b", "c"], "J": [[1.0, 2.0], [3.0], None]}  # the first row of "a" kept
     assert store.keys() == {"a", "b", "c"}
+
+
+def test_store_keeps_its_parts_few(tmp_path, monkeypatch):
+    """A writer merges its own parts every MERGE_EVERY parts, and open() merges the small parts
+    of a store that has more than MAX_PARTS: reading which tasks are done stays fast."""
+    import pyarrow as pa
+
+    from staghunt.study import store as store_module
+    from staghunt.study.store import ResultStore
+
+    monkeypatch.setattr(store_module, "MERGE_EVERY", 3)
+    schema = pa.schema([("key", pa.string()), ("J", pa.list_(pa.float64()))])
+    store = ResultStore(tmp_path / "r.parquet", schema).open()
+    for k in range(7):
+        store.append([{"key": f"k{k}", "J": [float(k)]}])
+    assert len(store.parts()) == 3  # (k0-k2), (k3-k5), k6
+    assert store.keys() == {f"k{k}" for k in range(7)} and "k6" in store
+    monkeypatch.setattr(store_module, "MAX_PARTS", 2)
+    again = ResultStore(tmp_path / "r.parquet", schema).open()
+    assert len(again.parts()) == 1
+    data = pq.read_table(again.path).to_pydict()
+    assert sorted(zip(data["key"], data["J"])) == [(f"k{k}", [float(k)]) for k in range(7)]

@@ -209,10 +209,11 @@ def check_waypoints(waypoints: object, n_uavs: int, what: str = "waypoints") -> 
 _SEED_PART = re.compile(r"(\d+)(?:\s*-\s*(\d+))?")
 
 
-def parse_seeds(text: str) -> tuple[int, ...]:
+def parse_seeds(text: str, limit: int | None = None) -> tuple[int, ...]:
     """``"1-10"``, ``"3"``, ``"1,4,7"`` or ``"1-3,8"`` -> seeds in order, duplicates dropped.
 
-    Raises ``ValueError`` with one line for anything else (negative, empty, reversed range).
+    Raises ``ValueError`` with one line for anything else (negative, empty, reversed range, more
+    than ``limit`` seeds).
     """
     out: list[int] = []
     seen: set[int] = set()
@@ -230,4 +231,6 @@ def parse_seeds(text: str) -> tuple[int, ...]:
             if v not in seen:
                 seen.add(v)
                 out.append(v)
+        if limit is not None and len(out) > limit:
+            raise FieldError(f"seeds: more than {limit:,} seeds", "seeds")
     return tuple(out)

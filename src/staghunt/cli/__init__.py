@@ -115,9 +115,12 @@ def _main(argv: Sequence[str] | None) -> int:
         return error(one_line(exc, args.command))
     except RecursionError:
         return error("input nested too deeply")
-    except MemoryError:
-        return error("out of memory; use a smaller budget (fewer particles, iterations or waypoints); "
-                     "'staghunt plan --dry-run' shows what a run needs")
+    except MemoryError as exc:  # not a budget: every budget is estimated and refused before it runs
+        if os.environ.get("STAGHUNT_DEBUG"):
+            raise
+        detail = f" ({clip(one_line(exc))})" if str(exc) else ""
+        return error(f"out of memory{detail}, although the inputs were checked; please report it "
+                     "(STAGHUNT_DEBUG=1 shows where)")
     except KeyboardInterrupt:
         raise
     except Exception as exc:  # a bug: one line, never a traceback (STAGHUNT_DEBUG=1 shows it)

@@ -2,9 +2,10 @@
 
 Exit codes: ``0`` every task of the spec is finished; ``3`` some tasks failed (recorded in
 DIR/errors.parquet, run again by the same command); ``2`` bad input (the spec, an override that
-makes a scenario invalid, the output directory, an unreachable scheduler), reported before any
-cluster starts (the scheduler: as soon as it is found unreachable); ``130`` interrupted
-(finished tasks are kept; the same command resumes).
+makes a scenario invalid, a spec of more than ``MAX_TASKS`` tasks, the output directory, an
+unreachable scheduler), reported before any cluster starts (the scheduler: as soon as it is
+found unreachable, after the line giving the number of tasks); ``130`` interrupted (finished
+tasks are kept; the same command resumes).
 """
 
 from __future__ import annotations
@@ -102,21 +103,21 @@ def cmd_sweep(args: argparse.Namespace) -> int:
         check_out_dir(out)
         if args.figures_only:
             return _figures(out, quiet=args.quiet, required=True)
-        results, _ = open_stores(out, sweep)
-        todo = pending(sweep, results)
+        stores = open_stores(out, sweep)
+        todo = pending(sweep, stores[0])
     except (ValueError, OSError) as exc:
         return error(one_line(exc))
+    if not args.quiet:  # before any work: the size of the study and what is left of it
+        say(f"{PROG}: sweep {args.spec}: {len(sweep):,} tasks, {len(sweep) - len(todo):,} already "
+            f"in {out / 'results.parquet'}, {len(todo):,} to run")
     executor = None
-    if todo:
+    if len(todo):
         from staghunt.study.executor import ClusterError, make_executor
 
-        try:  # first: an unreachable scheduler is the only line on stderr
+        try:
             executor = make_executor(args.scheduler, args.workers, args.connect_timeout)
         except ClusterError as exc:
             return error(one_line(exc))
-    if not args.quiet:
-        say(f"{PROG}: sweep {args.spec}: {len(sweep.tasks)} tasks, {len(sweep.tasks) - len(todo)} already "
-            f"in {out / 'results.parquet'}, {len(todo)} to run")
     if executor is not None:
         try:  # before any task: compiled once here, loaded from Numba's on-disk cache by the workers
             compile_s = warm_engine(sweep)
@@ -133,7 +134,8 @@ def cmd_sweep(args: argparse.Namespace) -> int:
             if not args.quiet:
                 say(f"{PROG}: running on {executor.description} ({executor.workers} worker"
                     f"{'s' if executor.workers != 1 else ''})")
-            summary = run_sweep(sweep, out, executor, progress.listener, flush_every_s=args.flush_every)
+            summary = run_sweep(sweep, out, executor, progress.listener, flush_every_s=args.flush_every,
+                                stores=stores, todo=todo)
         except KeyboardInterrupt:
             progress.close()
             say(f"{PROG}: interrupted: finished tasks are kept in {out / 'results.parquet'}; "

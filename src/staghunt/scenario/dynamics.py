@@ -17,6 +17,7 @@ from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, Sensing, Sle
 
 if TYPE_CHECKING:
     from staghunt.scenario.model import Scenario
+    from staghunt.task import UAV
     from staghunt.scenario.schema import EventsFile, JibTable, ScenarioFile
 
 
@@ -124,6 +125,34 @@ def check_names(dyn: Dynamics, world: World, key: str = "events") -> None:
             raise ScenarioError(f"no obstacle called {e.name!r} to disappear", f"{key}[{i}].name")
 
 
+def check_take_off(dyn: Dynamics, team: "tuple[UAV, ...]", world: World, prefix: str = "") -> None:
+    """No known motion of ``dyn`` may cover a UAV's start at take-off (``t = 0``: a moving
+    cylinder waits at its first vertex, a jib at ``angle_from``): the UAV could not take off.
+    Raises :class:`ScenarioError` naming the entry (``moving[i]``, ``jibs[i]``)."""
+    starts = np.array([u.start for u in team], dtype=float)
+    r = np.array([u.radius for u in team], dtype=float)
+    for i, m in enumerate(dyn.moving):
+        x, y = m.path[0]
+        d = np.hypot(starts[:, 0] - x, starts[:, 1] - y) - m.radius - r
+        if np.any(d < 0):
+            n = int(np.argmin(d))
+            raise ScenarioError(f"covers {team[n].name}'s start ({fmt(starts[n, 0])}, {fmt(starts[n, 1])}) at "
+                                f"take-off: it waits at path[0] = ({fmt(x)}, {fmt(y)}) with radius {fmt(m.radius)} m "
+                                f"until start_time", f"{prefix}moving[{i}]")
+    z = starts[:, 2] + world.terrain.height(starts[:, 0], starts[:, 1])
+    for i, j in enumerate(dyn.jibs):
+        a = math.radians(j.angle_from)
+        dx, dy = starts[:, 0] - j.pivot[0], starts[:, 1] - j.pivot[1]
+        along, across = dx * math.cos(a) + dy * math.sin(a), -dx * math.sin(a) + dy * math.cos(a)
+        gap = np.hypot(np.maximum.reduce([-j.counter - along, np.zeros_like(along), along - j.length]),
+                       np.maximum(np.abs(across) - 0.5 * j.width, 0.0))
+        hit = (gap < r) & (z > j.base - r) & (z < j.top + r)
+        if np.any(hit):
+            n = int(np.argmax(hit))
+            raise ScenarioError(f"covers {team[n].name}'s start at take-off (the jib lies at angle_from = "
+                                f"{fmt(j.angle_from)} degrees until start_time)", f"{prefix}jibs[{i}]")
+
+
 def load_events(path: str | os.PathLike[str], scenario: "Scenario") -> Dynamics:
     """The scenario's changing world plus an events file's (read once, checked whole before
     anything runs); raises :class:`ScenarioError` naming the file and the entry at fault."""
@@ -139,6 +168,7 @@ def load_events(path: str | os.PathLike[str], scenario: "Scenario") -> Dynamics:
         own = scenario.dynamics
         first = 1 + sum(1 for e in own.events if e.kind == "appear")
         extra, sensing_given = dynamics_from_tables(f, scenario.world, first_popup=first)
+        check_take_off(extra, scenario.team, scenario.world)
         dyn = own.merged(extra, sensing_given)
         check_names(dyn, scenario.world)
     except ScenarioError as exc:

@@ -444,10 +444,11 @@ def scenario_from_dict(
         team = _team(f.team)
         _check_team_in_world(team, world, costs)
         formation = _formation(f.formation, team, terrain)
-    from staghunt.scenario.dynamics import check_names, dynamics_from_tables
+    from staghunt.scenario.dynamics import check_names, check_take_off, dynamics_from_tables
 
     dynamics, _ = dynamics_from_tables(f, world)
     check_names(dynamics, world)
+    check_take_off(dynamics, team, world)
     from staghunt.scenario.inspection import inspection_from_tables
 
     vehicle = VehicleLimits(**f.vehicle.model_dump())

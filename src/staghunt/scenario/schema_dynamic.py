@@ -5,6 +5,7 @@ Part of the scenario format (:mod:`staghunt.scenario.schema`)."""
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Literal, Optional
 
 from pydantic import ConfigDict, Field, model_validator
@@ -13,8 +14,12 @@ from staghunt.scenario.errors import fmt as _fmt
 from staghunt.scenario.schema_inspection import ObjectiveTable
 from staghunt.scenario.schema_base import Number, Polygon, Solid, Table, fail
 
-__all__ = ["EventTable", "EventsFile", "JibTable", "MovingTable", "SensingTable"]
+__all__ = ["MAX_MOTION_SPEED", "EventTable", "EventsFile", "JibTable", "MovingTable", "SensingTable"]
 
+MAX_MOTION_SPEED = 50.0
+"""m/s: the fastest a known motion may move (a moving obstacle along its path, a jib's far
+corner): faster than anything on a site; the in-time checks' margin grows with it
+(docs/model.md, section 8)."""
 
 Seconds = Annotated[float, Field(ge=0, description="s after take-off")]
 XY = Annotated[list[Number], Field(min_length=2, max_length=2, description="[x, y] in the site frame (m)")]
@@ -28,7 +33,7 @@ class MovingTable(Table):
     name: Annotated[str, Field(pattern=r"\S")]
     radius: Annotated[float, Field(gt=0, description="m")]
     path: Annotated[list[XY], Field(min_length=2, description="[[x, y], ...] polyline of the axis (m)")]
-    speed: Annotated[float, Field(gt=0, description="m/s along the path")]
+    speed: Annotated[float, Field(gt=0, le=MAX_MOTION_SPEED, description="m/s along the path")]
     start_time: Seconds = 0.0
     repeat: RepeatKind = Field("stop", description="at the end: 'stop' there, or run the path back and forth ('reverse')")
 
@@ -47,9 +52,18 @@ class JibTable(Solid):
     height: Annotated[float, Field(gt=0, description="top, m above the ground at the pivot")]
     angle_from: Annotated[float, Field(ge=-360, le=360, description="degrees, counter-clockwise from east")]
     angle_to: Annotated[float, Field(ge=-360, le=360, description="degrees")]
-    rate: Annotated[float, Field(gt=0, le=90, description="deg/s")]
+    rate: Annotated[float, Field(gt=0, le=90, description="deg/s; the far corner moves at most 50 m/s")]
     start_time: Seconds = 0.0
     repeat: RepeatKind = "stop"
+
+    @model_validator(mode="after")
+    def _corner_speed(self) -> "JibTable":
+        reach = math.hypot(max(self.length, self.counter), 0.5 * self.width)
+        if math.radians(self.rate) * reach > MAX_MOTION_SPEED:
+            raise fail("rate", f"the jib's far corner ({reach:.1f} m from the pivot) would move at "
+                       f"{math.radians(self.rate) * reach:.1f} m/s, above {_fmt(MAX_MOTION_SPEED)} m/s: rate must be "
+                       f"<= {math.degrees(MAX_MOTION_SPEED / reach):.3g} deg/s here, got {_fmt(self.rate)}")
+        return self
 
 
 class EventTable(Table):

@@ -24,7 +24,8 @@ __all__ = ["key_path", "plain", "validate"]
 # What a fixed-length array holds, by key; units of two-sided ranges; hints for array errors.
 _VECTORS = {"start": "[x, y, h]", "goal": "[x, y, h]", "weights": "[w1, w2, w3, w4, w5]", "origin": "[x0, y0]"}
 _UNITS = {"turning_threshold_deg": " degrees", "climb_threshold_deg": " degrees", "latitude": " degrees",
-          "longitude": " degrees", "altitude": " m above mean sea level"}
+          "longitude": " degrees", "altitude": " m above mean sea level", "speed": " m/s",
+          "position_noise": " m", "velocity_noise": " m/s"}
 _ARRAY_HINTS = {"team": " (write [[team]] for each UAV)", "obstacles": " (write [[obstacles]] for each obstacle)",
                 "prisms": " (write [[prisms]] for each prism)", "boxes": " (write [[boxes]] for each box)",
                 "nofly": " (write [[nofly]] for each zone)", "geojson": " (write [[geojson]] for each file)"}

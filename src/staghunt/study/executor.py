@@ -4,7 +4,9 @@
   tests, ``compare`` by default); the task function may take progress callbacks.
 - :class:`DaskExecutor`: a Dask ``distributed`` cluster, either a ``LocalCluster`` started here
   (one worker *process* per core, one thread each) or an existing scheduler joined by address.
-  Results come back as tasks complete, in any order.
+  Tasks are submitted in batches (two per worker, at most two batches in flight), so the first
+  results come back within seconds and the client's memory does not grow with the number of
+  tasks; results come back as tasks complete, in any order.
 
 A task function takes one picklable task and returns one picklable outcome; it must not raise
 for a failure of its own task (it returns the failure as data), so an exception that reaches
@@ -14,6 +16,7 @@ for a failure of its own task (it returns the failure as data), so an exception 
 
 from __future__ import annotations
 
+import itertools
 import os
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -24,6 +27,11 @@ R = TypeVar("R")
 
 DEFAULT_CONNECT_TIMEOUT_S = 10.0
 """How long joining an existing scheduler may take before it is reported unreachable."""
+
+TASKS_PER_WORKER = 2
+MIN_BATCH = 8
+"""A Dask executor submits tasks in batches of ``max(MIN_BATCH, TASKS_PER_WORKER x workers)``
+and holds at most two batches in flight."""
 
 
 class ClusterError(ValueError):
@@ -105,7 +113,9 @@ class DaskExecutor(Generic[T, R]):
         from distributed import Client, LocalCluster
 
         if not os.environ.get("STAGHUNT_DEBUG"):
-            for name in ("distributed", "tornado"):
+            # tornado.application: Dask's logging configuration sets it apart, to "error"; a
+            # Ctrl-C in the middle of a client call made it print a traceback.
+            for name in ("distributed", "tornado", "tornado.application"):
                 logging.getLogger(name).setLevel(logging.CRITICAL)
         self.cluster = None
         if address is not None:
@@ -147,24 +157,45 @@ class DaskExecutor(Generic[T, R]):
         cache, so the first task of each worker does not pay it); returns what each returned."""
         return [float(v) for v in self.client.run(fn).values()]
 
+    def batch_size(self) -> int:
+        """Tasks submitted at once: :data:`TASKS_PER_WORKER` per worker, at least :data:`MIN_BATCH`."""
+        return max(MIN_BATCH, TASKS_PER_WORKER * self.workers)
+
     def map_unordered(self, fn: Callable[[T], R], tasks: Sequence[T]) -> Iterator[tuple[int, "R | TaskFailure"]]:
+        """Submit ``tasks`` in batches: one batch at the start, the next one each time the
+        tasks in flight fall to a batch or fewer, so the cluster always has work queued while
+        the client holds at most two batches of futures (and of tasks: ``tasks`` may be a lazy
+        sequence, read in order as the batches go)."""
         from distributed import as_completed
 
-        futures = [self.client.submit(fn, task, pure=False) for task in tasks]
-        index = {f.key: i for i, f in enumerate(futures)}
+        queue = iter(range(len(tasks)))
+        flight: dict[str, tuple[int, Any]] = {}  # key -> (index, future) of the tasks not yet yielded
+        pending = as_completed(loop=self.client.loop)
+
+        def submit(n: int) -> None:
+            batch = list(itertools.islice(queue, n))
+            if batch:
+                futures = self.client.map(fn, [tasks[i] for i in batch], pure=False)
+                flight.update({f.key: (i, f) for f, i in zip(futures, batch)})
+                pending.update(futures)
+
+        batch = self.batch_size()
+        submit(batch)
         try:
-            for future in as_completed(futures, loop=self.client.loop):
-                i = index[future.key]
+            for future in pending:
+                i, _ = flight.pop(future.key)
                 try:
                     outcome: R | TaskFailure = future.result()
                 except Exception as exc:  # a lost worker (KilledWorker), a lost connection
                     outcome = TaskFailure(f"{type(exc).__name__}: {_one_line(exc)}")
                 future.release()
+                if len(flight) <= batch:
+                    batch = self.batch_size()  # workers may have joined or left
+                    submit(2 * batch - len(flight))
                 yield i, outcome
         finally:
-            for f in futures:
-                if not f.done():
-                    f.cancel()
+            for _, f in flight.values():
+                f.cancel()
 
     def close(self) -> None:
         try:

@@ -13,15 +13,16 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pyarrow as pa
 
 from staghunt.study.executor import InlineExecutor, TaskFailure, run_tasks
-from staghunt.study.spec import Sweep
+from staghunt.study.grid import Sweep, TaskList
 from staghunt.study.store import ResultStore
 from staghunt.study.tasks import PlanTask, TaskOutcome, run_plan_task
 
@@ -89,10 +90,19 @@ def open_stores(out_dir: Path, sweep: Sweep) -> tuple[ResultStore, ResultStore]:
     return (ResultStore(out_dir / RESULTS, schema).open(), ResultStore(out_dir / ERRORS, schema).open())
 
 
-def pending(sweep: Sweep, results: ResultStore) -> list[PlanTask]:
-    """The tasks of ``sweep`` whose key is not in ``results`` yet, in the spec's order."""
+def pending(sweep: Sweep, results: ResultStore, tasks: TaskList | None = None) -> TaskList:
+    """The tasks of ``sweep`` (or of its subset ``tasks``) whose key is not in ``results`` yet,
+    in the spec's order, as a lazy sequence (an array of indices: 8 bytes per task)."""
+    tasks = tasks if tasks is not None else sweep.tasks
     done = results.keys()
-    return [t for t in sweep.tasks if t.key not in done]
+    if not done:
+        return tasks
+    if isinstance(tasks.indices, range) and tasks.indices == range(len(sweep)):
+        keys: Iterator[str] = sweep.keys()
+        todo = np.fromiter((i for i, k in enumerate(keys) if k not in done), dtype=np.int64)
+    else:
+        todo = np.fromiter((i for i in tasks.indices if sweep.task(int(i)).key not in done), dtype=np.int64)
+    return TaskList(sweep, todo)
 
 
 def _prepare_numba() -> float:
@@ -120,18 +130,22 @@ def warm_workers(sweep: Sweep, executor: Any) -> list[float]:
 def run_sweep(sweep: Sweep, out_dir: str | os.PathLike[str], executor: Any = None,
               listener: SweepListener | None = None,
               task_fn: Callable[[PlanTask], TaskOutcome] = run_plan_task,
-              flush_every_s: float = FLUSH_EVERY_S) -> SweepSummary:
-    """Run the tasks of ``sweep`` not yet in ``out_dir/results.parquet`` on ``executor``
-    (default: in this process); rows are written as tasks complete (at most ``flush_every_s``
-    late; ``0``: a part per task) and at the end, also on ``KeyboardInterrupt`` (re-raised)."""
+              flush_every_s: float = FLUSH_EVERY_S, tasks: TaskList | None = None,
+              stores: tuple[ResultStore, ResultStore] | None = None, todo: TaskList | None = None) -> SweepSummary:
+    """Run the tasks of ``sweep`` (or its subset ``tasks``) not yet in
+    ``out_dir/results.parquet`` on ``executor`` (default: in this process); rows are written as
+    tasks complete (at most ``flush_every_s`` late; ``0``: a part per task) and at the end, also
+    on ``KeyboardInterrupt`` (re-raised). ``stores`` and ``todo``: what :func:`open_stores`
+    and :func:`pending` gave the caller (not computed again)."""
     from staghunt._version import __version__
 
     executor = executor if executor is not None else InlineExecutor()
     listener = listener or SweepListener()
     out = Path(out_dir)
-    results, errors = open_stores(out, sweep)
-    todo = pending(sweep, results)
-    summary = SweepSummary(total=len(sweep.tasks), skipped=len(sweep.tasks) - len(todo))
+    results, errors = stores if stores is not None else open_stores(out, sweep)
+    tasks = tasks if tasks is not None else sweep.tasks
+    todo = todo if todo is not None else pending(sweep, results, tasks)
+    summary = SweepSummary(total=len(tasks), skipped=len(tasks) - len(todo))
     listener.started(summary, executor.workers)
     ok_rows: list[dict[str, Any]] = []
     bad_rows: list[dict[str, Any]] = []

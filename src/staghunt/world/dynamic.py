@@ -33,6 +33,10 @@ from staghunt.world.obstacles import Cylinder, Prism
 
 Repeat = Literal["stop", "reverse"]
 
+MAX_SWEPT_CYLINDERS = 200
+"""Stand-ins of one moving cylinder over one window (:meth:`Dynamics.swept`): a fast or small
+obstacle gets wider-spaced, larger ones, never more (the planner's work grows with them)."""
+
 
 def _bounce(s: np.ndarray, length: float, repeat: Repeat) -> np.ndarray:
     """Arc length ``s >= 0`` folded into ``[0, length]``: clipped, or back and forth."""
@@ -68,11 +72,42 @@ class MovingCylinder:
         s = _bounce(np.maximum(t - self.start_time, 0.0) * self.speed, float(cum[-1]), self.repeat)
         return np.column_stack([np.interp(s, cum, v[:, 0]), np.interp(s, cum, v[:, 1])])
 
-    def sub_path(self, t0: float, t1: float, step: float) -> np.ndarray:
-        """``(S, 2)`` axis positions every ``<= step`` metres of travel over ``[t0, t1]``."""
-        travel = max(0.0, t1 - t0) * self.speed
-        n = max(1, math.ceil(travel / max(step, 1e-6)))
-        return self.xy(np.linspace(t0, t1, n + 1))
+    def arc_range(self, t0: float, t1: float) -> tuple[float, float]:
+        """``(lo, hi)``: the arc lengths along the path that the axis covers during ``[t0, t1]``."""
+        L = self.length
+        u0, u1 = (max(t - self.start_time, 0.0) * self.speed for t in (t0, max(t0, t1)))
+        if self.repeat == "stop" or L <= 0:
+            return min(u0, L), min(u1, L)
+        if u1 - u0 >= 2.0 * L:
+            return 0.0, L
+        a, b = (float(_bounce(np.array([u]), L, "reverse")[0]) for u in (u0, u1))
+        lo, hi = min(a, b), max(a, b)
+        for k in range(math.floor(u0 / L) + 1, math.ceil(u1 / L)):  # the turns within the window
+            lo, hi = (0.0, hi) if k % 2 == 0 else (lo, L)
+        return lo, hi
+
+    def cover(self, t0: float, t1: float, step: float, max_points: int = 200) -> tuple[np.ndarray, float]:
+        """Cylinders covering every position of this cylinder during ``[t0, t1]``: ``(S, 2)``
+        centres along the covered part of the path (:meth:`arc_range`), at most ``step`` m of
+        path apart, or wider apart so that ``S <= max_points`` however fast or small the
+        obstacle (plus the path's vertices in between while they are fewer than
+        ``max_points``), and their common radius: ``sqrt(R^2 + (d/2)^2)`` over a straight gap
+        of chord ``d``, ``R + g/2`` over a gap of ``g`` m of path with a bend in it."""
+        v = np.asarray(self.path, dtype=float)
+        cum = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(v, axis=0), axis=1))])
+        lo, hi = self.arc_range(t0, t1)
+        n = min(max(0, math.ceil((hi - lo) / max(step, 1e-9))), max(1, max_points - 1))
+        s = np.linspace(lo, hi, n + 1) if n > 0 else np.array([lo])
+        inner = cum[(cum > lo) & (cum < hi)]
+        if len(s) + len(inner) <= max_points:
+            s = np.union1d(s, inner)
+        pts = np.column_stack([np.interp(s, cum, v[:, 0]), np.interp(s, cum, v[:, 1])])
+        if len(s) < 2:
+            return pts, float(self.radius)
+        chord = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+        bend = np.searchsorted(cum, s[:-1], side="right") < np.searchsorted(cum, s[1:], side="left")
+        need = np.where(bend, self.radius + 0.5 * np.diff(s), np.hypot(self.radius, 0.5 * chord))
+        return pts, float(need.max())
 
 
 @dataclass(frozen=True)
@@ -180,17 +215,16 @@ class Dynamics:
     def swept(self, t0: float, t1: float, only: set[str] | None = None
               ) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
         """Static stand-ins covering where the known motions (or those named in ``only``) can be
-        during ``[t0, t1]``: for a moving cylinder, cylinders of radius ``sqrt(R^2 + (s/2)^2)``
-        centred every ``s = R`` m along its track (they cover the swept capsule); for a jib, its
-        box every ``step`` of heading, widened by the largest chord between two steps."""
+        during ``[t0, t1]``: for a moving cylinder, cylinders every ``R`` m along the part of its
+        path it covers (at most :data:`MAX_SWEPT_CYLINDERS`, spaced wider when the part is longer),
+        grown to cover the swept capsule (:meth:`MovingCylinder.cover`); for a jib, its box every
+        5 degrees of heading, widened by the largest chord between two steps."""
         gone = self.removed(t1)
         cyl: list[Cylinder] = []
         for m in self.moving:
             if (only is not None and m.name not in only) or m.name in gone:
                 continue
-            pts = m.sub_path(t0, t1, m.radius)
-            step = float(np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1), initial=0.0))
-            r = math.hypot(m.radius, 0.5 * step)
+            pts, r = m.cover(t0, t1, m.radius, MAX_SWEPT_CYLINDERS)
             cyl.extend(Cylinder(float(x), float(y), r, f"{m.name} (swept)") for x, y in pts)
         prisms: list[Prism] = []
         for j in self.jibs:
