@@ -71,12 +71,14 @@ class Decision:
 
 
 def _remainder(seg: CaptureSegment, at: np.ndarray) -> CaptureSegment | None:
-    """What is left of ``seg`` flown from the point nearest ``at`` to its end (``None``: nothing)."""
+    """What is left of ``seg`` flown from the planned point before the one nearest ``at`` to its end
+    (``None``: nothing)."""
     if seg.trigger == "points":
         return seg
     k = int(np.argmin(np.linalg.norm(seg.points - at, axis=1)))
     if k >= len(seg.points) - 1:
         return None
+    k = max(k - 1, 0)  # from the planned point before: the new photos overlap the last ones taken
     return replace(seg, points=seg.points[k:].copy(), yaw=seg.yaw[k:].copy(), pitch=seg.pitch[k:].copy())
 
 
