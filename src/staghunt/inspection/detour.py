@@ -39,14 +39,21 @@ def _blockers(keep: Keepout, z_lo: float, z_hi: float, margin: float) -> list[Po
 
 
 def _around(keep: Keepout, a: np.ndarray, b: np.ndarray, margin: float) -> np.ndarray | None:
-    obstacles = _blockers(keep, min(a[2], b[2]), max(a[2], b[2]), margin)
+    """The shortest way round in the plane, ``margin`` from every obstacle but where an end is
+    nearer than that (a viewpoint by a crane's jib): the hops from and to the ends keep only the
+    required clearance (and 0.25 m)."""
+    lo, hi = min(a[2], b[2]), max(a[2], b[2])
+    obstacles = _blockers(keep, lo, hi, margin)
     if not obstacles:
         return None
     union = unary_union(obstacles)
-    if union.contains(Point(a[:2])) or union.contains(Point(b[:2])):  # an end nearer than the margin
+    strict = unary_union(_blockers(keep, lo, hi, 0.25))
+    if strict.contains(Point(a[:2])) or strict.contains(Point(b[:2])):
         return None
     inner = union.buffer(-0.01)  # an edge may run along an outline, not through it
+    inner_strict = strict.buffer(-0.01)
     shapely.prepare(inner)
+    shapely.prepare(inner_strict)
     nodes = [a[:2], b[:2]]
     for poly in getattr(union, "geoms", [union]):
         nodes.extend(np.asarray(poly.exterior.coords)[:-1])
@@ -54,7 +61,8 @@ def _around(keep: Keepout, a: np.ndarray, b: np.ndarray, margin: float) -> np.nd
     n = len(nodes)
     i, j = np.triu_indices(n, k=1)
     lines = shapely.linestrings(np.stack([nodes[i], nodes[j]], axis=1))  # every pair at once
-    free = ~shapely.intersects(inner, lines)
+    end = i < 2
+    free = np.where(end, ~shapely.intersects(inner_strict, lines), ~shapely.intersects(inner, lines))
     i, j = i[free], j[free]
     d = np.hypot(*(nodes[j] - nodes[i]).T)
     rows, cols, vals = np.concatenate([i, j]), np.concatenate([j, i]), np.concatenate([d, d])
@@ -90,7 +98,7 @@ def detour(keep: Keepout, a: np.ndarray, b: np.ndarray) -> np.ndarray | None:
     line: points ``(M, 3)``, or ``None`` if neither is safe."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     best = None
-    for path in (_around(keep, a, b, MARGIN), _around(keep, a, b, 0.25), _over(keep, a, b)):
+    for path in (_around(keep, a, b, MARGIN), _over(keep, a, b)):
         if path is None or not keep.segment_ok(path).all() or not keep.point_ok(path).all():
             continue
         length = float(np.linalg.norm(np.diff(path, axis=0), axis=1).sum())

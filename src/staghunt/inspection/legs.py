@@ -18,6 +18,7 @@ from dataclasses import replace
 import numpy as np
 
 from staghunt.acquisition.clearance import Keepout
+from staghunt.acquisition.plan import CAPTURE_MARGIN
 from staghunt.api import plan
 from staghunt.inspection.detour import detour
 from staghunt.result import PlanResult
@@ -67,7 +68,7 @@ def team_leg(scenario: Scenario, uavs: list[int], starts: np.ndarray, goals: np.
 def solo_leg(scenario: Scenario, k: int, a: np.ndarray, b: np.ndarray, settings: SolverSettings, seed: int,
              engine: str = "auto") -> tuple[np.ndarray, PlanResult | None]:
     """UAV ``k``'s leg from ``a`` to ``b`` (absolute): ``(points (M, 3), plan or None)``."""
-    keep = Keepout(scenario, scenario.team[k].radius)
+    keep = Keepout(scenario, scenario.team[k].radius, CAPTURE_MARGIN)  # room for the wind, as captures have
     hop = np.array([a, b], dtype=float)
     if np.linalg.norm(hop[1] - hop[0]) < 1e-9:
         return hop[:1].repeat(2, axis=0), None
