@@ -38,7 +38,8 @@ from pathlib import Path
 import numpy as np
 
 from staghunt.flight.inspection import fly_inspection
-from staghunt.inspection.allocation import Problem, solve, solve_ortools
+from staghunt.inspection.allocation import Problem
+from staghunt.inspection.routing import solve, solve_ortools
 from staghunt.inspection.files import clean
 from staghunt.inspection.planner import SLACK, InspectConfig, fleet_of, plan_inspection
 from staghunt.scenario import load_scenario

@@ -20,7 +20,8 @@ from staghunt.acquisition.plan import keepout, plan_captures
 from staghunt.acquisition.survey import qgc_photos
 from staghunt.camera import camera_table, get_camera
 from staghunt.camera.projection import surface_gsd
-from staghunt.inspection.allocation import Problem, greedy, lower_bound, solve
+from staghunt.inspection.allocation import Problem, greedy, lower_bound
+from staghunt.inspection.routing import solve
 from staghunt.inspection.planner import InspectConfig, fleet_of, plan_inspection
 from staghunt.inspection.tasks import make_tasks
 from staghunt.scenario import SolverSettings, load_scenario

@@ -80,7 +80,8 @@ def cmd_inspect(args: argparse.Namespace) -> int:
     the same objectives plans the legs with the game, times and checks the team.
     """
     from staghunt.acquisition.plan import plan_captures
-    from staghunt.inspection.allocation import Problem, solve
+    from staghunt.inspection.allocation import Problem
+    from staghunt.inspection.routing import solve
     from staghunt.inspection.planner import SLACK, fleet_of
     from staghunt.inspection.tasks import make_tasks
 

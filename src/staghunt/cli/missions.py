@@ -105,7 +105,7 @@ def _inspection_source(args: argparse.Namespace) -> tuple[str | None, Any]:
         return None, data
     from staghunt.inspection.files import write_inspection
     from staghunt.inspection.planner import plan_inspection
-    from staghunt.scenario.loader import with_objectives
+    from staghunt.scenario.objectives_file import with_objectives
 
     if not isinstance(data, dict) or not isinstance(data.get("scenario"), dict):
         raise ValueError(f"{args.result}: not a staghunt result file (no scenario)")

@@ -266,7 +266,8 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
 def warm_up() -> None:
     """Load and run OR-Tools' routing once on a two-task problem (its first use costs seconds of
     imports and set-up that a decision in flight would otherwise pay)."""
-    from staghunt.inspection.allocation import Problem, solve
+    from staghunt.inspection.allocation import Problem
+    from staghunt.inspection.routing import solve
     from staghunt.inspection.tasks import Fleet, Task, Way
     from staghunt.acquisition.segments import CaptureSegment
 

@@ -27,7 +27,8 @@ import numpy as np
 from staghunt.acquisition.plan import keepout, plan_objective
 from staghunt.acquisition.segments import CapturePlan, CaptureSegment, arc_length
 from staghunt.acquisition.survey import _runs
-from staghunt.inspection.allocation import Allocation, Problem, solve
+from staghunt.inspection.allocation import Allocation, Problem
+from staghunt.inspection.routing import solve
 from staghunt.inspection.planner import SLACK, Flight, InspectConfig, fleet_of
 from staghunt.inspection.tasks import Task, Way, make_tasks
 from staghunt.inspection.timeline import Piece, Timeline, hover_piece

@@ -30,7 +30,8 @@ from staghunt.acquisition.plan import plan_captures
 from staghunt.acquisition.segments import CapturePlan
 from staghunt.costs import CostModel, to_absolute
 from staghunt.errors import FieldError
-from staghunt.inspection.allocation import Allocation, Problem, lower_bound, solve
+from staghunt.inspection.allocation import Allocation, Problem, lower_bound
+from staghunt.inspection.routing import solve
 from staghunt.inspection.legs import leg_scenario, solo_leg, team_leg
 from staghunt.inspection.tasks import Fleet, Task, make_tasks
 from staghunt.inspection.timeline import Piece, Timeline, capture_piece, hover_piece, path_piece, team_pieces
