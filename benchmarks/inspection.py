@@ -92,17 +92,37 @@ def flight_row(f) -> dict:
 
 def flat_ratio(scenario) -> dict:
     """The same surveys planned over level ground: QGroundControl's count does not see the
-    terrain, ours flies lower where the ground in a photo falls away (the GSD guarantee)."""
+    terrain, ours flies lower where the ground in a photo falls away (the GSD guarantee). And
+    what QGroundControl's own plan (its transects and triggers, terrain following at the GSD's
+    height above the ground under the camera) covers, on the site's ground and on level ground."""
+    from shapely.geometry import Polygon
+
+    from staghunt.acquisition.coverage import Photos, area_cells, measure
     from staghunt.acquisition.plan import plan_objective
+    from staghunt.acquisition.survey import line_angle, qgc_photo_poses
     from staghunt.task.objectives import AreaObjective
     from staghunt.world import Terrain
 
     flat = replace(scenario, world=replace(scenario.world, terrain=Terrain()))
     out = {}
     for o in scenario.inspection.objectives:
-        if isinstance(o, AreaObjective):
-            p = plan_objective(flat, flat.inspection, o)
-            out[o.name] = {"photos": p.photos, "qgc": p.qgc_photos, "ratio": p.photos / p.qgc_photos}
+        if not isinstance(o, AreaObjective):
+            continue
+        p = plan_objective(flat, flat.inspection, o)
+        cam = scenario.inspection.camera_for(o)
+        qgc = {}
+        for label, sc in (("site", scenario), ("level", flat)):
+            pos, yaw, pitch = qgc_photo_poses(Polygon(o.polygon), line_angle(Polygon(o.polygon)),
+                                              cam.line_spacing_m(o.gsd_cm, o.side_overlap),
+                                              cam.trigger_distance_m(o.gsd_cm, o.front_overlap), cam.distance_m(o.gsd_cm),
+                                              sc.world.terrain)
+            n = len(pos)
+            photos = Photos(np.arange(n, dtype=float), np.zeros(n, int), pos, yaw, pitch, np.zeros(n),
+                            np.full(n, o.name), np.zeros(n, int))
+            c = measure(area_cells(o, sc, 1.0), photos, cam, sc, o.gsd_cm)
+            qgc[label] = {"photos": n, "cells_5_images_at_gsd": c.min_images_share, "cells_at_gsd": c.target_share}
+        out[o.name] = {"photos": p.photos, "qgc": p.qgc_photos, "ratio": p.photos / p.qgc_photos,
+                       "qgc_plan_covers": qgc}
     return out
 
 
@@ -219,6 +239,11 @@ def table(report: dict) -> str:
         return min(next(v for v in x["coverage"].values() if "cells_5_images_at_gsd" in v)["cells_5_images_at_gsd"]
                    for x in r["losses"])
 
+    def qgc_cover(r):
+        return ", ".join(f"{v['qgc_plan_covers']['site']['cells_5_images_at_gsd']:.1%} / "
+                         f"{v['qgc_plan_covers']['level']['cells_5_images_at_gsd']:.1%}"
+                         for v in r["photos_vs_qgc_flat_ground"].values())
+
     def facades(r, key):
         return min(v["patches_at_gsd_within_incidence"] for v in r[key]["coverage"].values()
                    if "patches_at_gsd_within_incidence" in v)
@@ -239,6 +264,8 @@ def table(report: dict) -> str:
          lambda t: runs(t, lambda r: ", ".join(f"{v['ratio']:.2f} ({v['photos']} / {v['qgc']})"
                                                for v in r["photos_vs_qgc"].values()) + "; " + ", ".join(
              f"{v['ratio']:.2f} ({v['photos']} / {v['qgc']})" for v in r["photos_vs_qgc_flat_ground"].values()))),
+        ("QGroundControl's own plan of the survey: cells with >= 5 photos at the GSD, on the site / on level ground",
+         lambda t: runs(t, qgc_cover)),
         ("least trigger interval flown (camera: 0.7 s)",
          lambda t: runs(t, lambda r: f"{r['flight_wind_0']['least_trigger_interval_s']:.2f} s")),
         ("motion blur at the flown speed, 1/1000 s (<= 0.5 px; max)",

@@ -39,7 +39,7 @@ from staghunt.acquisition.segments import CaptureSegment, ObjectivePlan
 from staghunt.camera import Camera
 from staghunt.task.objectives import AreaObjective
 
-__all__ = ["line_angle", "plan_area", "qgc_photos"]
+__all__ = ["line_angle", "plan_area", "qgc_photo_poses", "qgc_photos", "qgc_transects"]
 
 RELIEF_FRACTION = 1.0
 """Share of the footprint (centred, along and across) whose lowest ground sets the height: the
@@ -80,16 +80,16 @@ def _pieces(geom: BaseGeometry) -> list[LineString]:
     return [g for g in getattr(geom, "geoms", []) if isinstance(g, LineString)]
 
 
-def qgc_photos(polygon: Polygon, angle: float, spacing: float, trigger: float) -> int:
-    """Photos QGroundControl's Survey plans (``SurveyComplexItem``: lines every ``spacing`` from
-    an offset fixed by the bounding box, each spanning the two farthest crossings of the polygon,
-    ``ceil(length / trigger)`` photos each; no turnaround photos)."""
+def qgc_transects(polygon: Polygon, angle: float, spacing: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """QGroundControl Survey's transects (``SurveyComplexItem``): lines every ``spacing`` from an
+    offset fixed by the bounding box, each spanning the two farthest crossings of the polygon
+    (``[(start (2,), end (2,)), ...]``); one line through the centre when fewer than two cross."""
     u, v = _frame(angle)
     xy = np.asarray(polygon.exterior.coords)
     cu, cv = xy @ u, xy @ v
     centre = 0.5 * (np.array([cu.min(), cv.min()]) + np.array([cu.max(), cv.max()]))
     half = 0.5 * (max(cu.max() - cu.min(), cv.max() - cv.min()) + 2000.0)
-    total, lines = 0, 0
+    out = []
     for off in np.arange(centre[1] - half, centre[1] + half, spacing):
         a = (centre[0] - half) * u + off * v
         b = (centre[0] + half) * u + off * v
@@ -99,14 +99,42 @@ def qgc_photos(polygon: Polygon, angle: float, spacing: float, trigger: float) -
         if len(pts) < 2:
             continue
         s = pts @ u
-        total += math.ceil((s.max() - s.min()) / trigger - 1e-9)
-        lines += 1
-    if lines < 2:  # QGroundControl then flies one line through the centre
+        out.append((pts[int(np.argmin(s))], pts[int(np.argmax(s))]))
+    if len(out) < 2:
         a = (centre[0] - half) * u + centre[1] * v
         b = (centre[0] + half) * u + centre[1] * v
         inter = polygon.intersection(LineString([a, b]))
-        return max(1, math.ceil(inter.length / trigger - 1e-9))
-    return total
+        c = np.asarray(inter.coords) if not inter.is_empty and hasattr(inter, "coords") else np.zeros((0, 2))
+        out = [(c[0], c[-1])] if len(c) >= 2 else out
+    return out
+
+
+def qgc_photos(polygon: Polygon, angle: float, spacing: float, trigger: float) -> int:
+    """Photos QGroundControl's Survey plans: ``ceil(length / trigger)`` per transect
+    (:func:`qgc_transects`; no turnaround photos)."""
+    return max(1, sum(math.ceil(float(np.linalg.norm(b - a)) / trigger - 1e-9) for a, b in qgc_transects(polygon, angle,
+                                                                                                         spacing)))
+
+
+def qgc_photo_poses(polygon: Polygon, angle: float, spacing: float, trigger: float, distance: float,
+                    terrain: object) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Where QGroundControl's Survey takes its photos over ``terrain`` with terrain following:
+    ``ceil(length / trigger)`` per transect from its start, each ``distance`` above the ground
+    under the camera, nadir, the image's height axis along the line: ``(positions (F, 3), yaw (F,),
+    pitch (F,))``. To measure what its plan covers on the same ground (its estimate assumes level
+    ground)."""
+    pos, yaw = [], []
+    for k, (a, b) in enumerate(qgc_transects(polygon, angle, spacing)):
+        if k % 2:
+            a, b = b, a
+        n = max(1, math.ceil(float(np.linalg.norm(b - a)) / trigger - 1e-9))
+        d = (b - a) / max(float(np.linalg.norm(b - a)), 1e-9)
+        xy = a + np.outer(np.arange(n) * trigger, d)
+        g = np.asarray(terrain.height(xy[:, 0], xy[:, 1]), dtype=float)  # type: ignore[attr-defined]
+        pos.append(np.column_stack([xy, g + distance]))
+        yaw.append(np.full(n, math.atan2(d[1], d[0])))
+    p = np.vstack(pos)
+    return p, np.concatenate(yaw), np.full(len(p), -0.5 * math.pi)
 
 
 def _ground_reference(keep: Keepout, xy: np.ndarray, u: np.ndarray, v: np.ndarray,
