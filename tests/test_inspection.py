@@ -426,3 +426,58 @@ def test_the_builtin_inspections_load():
         assert all(p.camera.name == "DJI Mavic 3E Wide" for p in s.inspection.payloads)
     assert isinstance(load_scenario("site_inspection3").inspection, Inspection)
     assert Payload(M3E).gimbal_pitch_min_deg == -90.0
+
+
+def test_objectives_from_geojson_in_wgs84(tmp_path):
+    """An area and a point given as GeoJSON features (WGS84) land where their site coordinates
+    would have put them."""
+    from staghunt.world.georef import site_to_lonlat
+
+    s = load_scenario("site_wedge")
+    poly = [(300.0, 40.0), (420.0, 40.0), (420.0, 110.0), (300.0, 110.0)]
+    lon, lat = site_to_lonlat(s.origin, np.array([p[0] for p in poly]), np.array([p[1] for p in poly]))
+    plon, plat = site_to_lonlat(s.origin, np.array([350.0]), np.array([200.0]))
+    feats = [{"type": "Feature", "properties": {"name": "dig"},
+              "geometry": {"type": "Polygon", "coordinates": [[[a, b] for a, b in zip(lon, lat)] + [[lon[0], lat[0]]]]}},
+             {"type": "Feature", "properties": {"name": "mast"},
+              "geometry": {"type": "Point", "coordinates": [float(plon[0]), float(plat[0])]}}]
+    (tmp_path / "features.geojson").write_text(json.dumps({"type": "FeatureCollection", "features": feats}))
+    (tmp_path / "obj.toml").write_text('camera = "DJI Mavic 3E Wide"\n[[objectives]]\nkind = "area"\nname = "a"\n'
+                                       'geojson = "features.geojson"\nfeature = "dig"\ngsd_cm = 1.5\n'
+                                       '[[objectives]]\nkind = "point"\nname = "p"\ngeojson = "features.geojson"\n'
+                                       'feature = "mast"\nz = 10.0\ndistance = 15.0\n')
+    insp = load_scenario("site_wedge", objectives=tmp_path / "obj.toml").inspection
+    area, point = insp.objectives
+    assert np.allclose(area.polygon, poly, atol=1e-3)
+    assert (point.x, point.y) == pytest.approx((350.0, 200.0), abs=1e-3)
+
+
+def test_decisions_add_an_objective_and_cut_what_an_obstacle_blocks(planned):
+    """An objective added in flight is planned and allocated; an obstacle that appears on a
+    survey line cuts it where it is no longer safe, and the cut is reported."""
+    from staghunt.inspection.decision import WorkLog, reallocate
+    from staghunt.task.objectives import PointObjective
+    from staghunt.world import Cylinder
+
+    plan, _ = planned
+    sc, insp, tl = plan.scenario, plan.inspection, plan.timeline
+    alive = np.ones(tl.n, dtype=bool)
+    extra = PointObjective("new mast", 70.0, 30.0, 8.0, 10.0)
+    insp2 = replace(insp, objectives=insp.objectives + (extra,))
+    log = WorkLog(list(plan.tasks))
+    t = 25.0
+    new, dec = reallocate(replace(sc, inspection=insp2), insp2, log, tl, t, alive, {}, FAST, 1, "objective", (extra,))
+    assert any(log.tasks[p.task].objective == "new mast" for pieces in new.pieces for p in pieces if p.task is not None)
+    assert dec.switch >= t and new.end >= t
+    # an obstacle on the survey: a cylinder in the middle of the excavation
+    blocked = replace(sc, world=replace(sc.world, cylinders=sc.world.cylinders + (Cylinder(40.0, 32.0, 3.0, "skip"),)))
+    log = WorkLog(list(plan.tasks))
+    new, dec = reallocate(blocked, insp, log, tl, 1.0, alive, {}, FAST, 1, "skip appears", check_site=True)
+    assert any("no longer safe after the site changed" in n for n in dec.notes)
+    from staghunt.acquisition.clearance import Keepout
+
+    keep = Keepout(blocked, 1.0)
+    for pieces in new.pieces:
+        for p in pieces:
+            if p.kind == "capture" and p.t0 >= 1.0 and len(p.points) > 1:
+                assert keep.segment_ok(p.points).all()
