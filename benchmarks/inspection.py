@@ -90,6 +90,16 @@ def flight_row(f) -> dict:
             "decisions": [{"time": d.time, "latency_s": d.latency_s, "tasks": d.tasks_left} for d in f.decisions]}
 
 
+def same_model(plan) -> float:
+    """The allocation's routes timed as the bound times them (straight legs at the cruise speed,
+    no stop, no slack), over the bound: the allocation's own share of the gap."""
+    from staghunt.inspection.allocation import time_routes
+
+    pb = Problem(plan.tasks, fleet_of(plan.scenario, plan.inspection), stop_s=0.0, slack=1.0)
+    routes, _ = time_routes(pb, [plan.allocation.tasks_of(k) for k in range(pb.fleet.n)])
+    return max(r.end for r in routes) / plan.allocation.lower_bound
+
+
 def flat_ratio(scenario) -> dict:
     """The same surveys planned over level ground: QGroundControl's count does not see the
     terrain, ours flies lower where the ground in a photo falls away (the GSD guarantee). And
@@ -171,6 +181,7 @@ def main() -> int:
                    "allocation_makespan_s": plan.allocation.makespan, "greedy_makespan_s": plan.baseline.makespan,
                    "lower_bound_s": plan.allocation.lower_bound, "planned_makespan_s": plan.makespan,
                    "allocation_over_bound": plan.allocation.makespan / plan.allocation.lower_bound,
+                   "allocation_over_bound_same_model": same_model(plan),
                    "planned_over_bound": plan.makespan / plan.allocation.lower_bound,
                    "outbound_certified": bool(plan.outbound is not None and plan.outbound.certificate is not None
                                               and plan.outbound.certificate.is_equilibrium),
@@ -270,8 +281,10 @@ def table(report: dict) -> str:
          lambda t: runs(t, lambda r: f"{r['flight_wind_0']['least_trigger_interval_s']:.2f} s")),
         ("motion blur at the flown speed, 1/1000 s (<= 0.5 px; max)",
          lambda t: runs(t, lambda r: f"{blur(r):.2f} px")),
-        ("makespan / lower bound (<= 1.15): allocation, planned flight",
-         lambda t: runs(t, lambda r: f"{r['allocation_over_bound']:.2f}, {r['planned_over_bound']:.2f}")),
+        ("makespan / lower bound (<= 1.15): the allocation timed as the bound is; as planned (slack 1.25, stops); "
+         "the timed plan",
+         lambda t: runs(t, lambda r: f"{r['allocation_over_bound_same_model']:.2f}; {r['allocation_over_bound']:.2f}; "
+                                     f"{r['planned_over_bound']:.2f}")),
         ("makespan: OR-Tools / greedy / lower bound (s)",
          lambda t: runs(t, lambda r: f"{r['allocation_makespan_s']:.0f} / {r['greedy_makespan_s']:.0f} / "
                                      f"{r['lower_bound_s']:.0f}")),
