@@ -10,7 +10,8 @@ Where the lines go (docs/model.md, section 9):
 - Lines run along ``angle_deg`` (default: the long side of the polygon's minimum rotated
   rectangle). They are placed so that a cell on the polygon's side edge is inside the footprint
   of two lines (the first line ``max(W/2 - s, 0)`` inside the edge, then every ``s`` or less),
-  and each line is extended by half a trigger distance beyond the polygon at both ends, so that
+  and each line is extended by half a trigger distance beyond the polygon at both ends (up to
+  three quarters where the terrain falls away under it: the frame's far edge then sees coarser), so that
   the last cells along a line are seen by as many photos as the overlap gives; QGroundControl's
   Survey starts its lines at an arbitrary phase and stops them at the edge, which leaves the
   edges with fewer photos (:func:`qgc_photos` counts what it would take).
@@ -216,12 +217,20 @@ def _plan_area(obj: AreaObjective, angle: float, camera: Camera, keep: Keepout, 
     distance = min(camera.distance_m(obj.gsd_cm), bounds.hmax)
     gsd = camera.gsd_cm(distance)
     nominal = camera.footprint_m(gsd)
-    extend = 0.5 * camera.trigger_distance_m(gsd, obj.front_overlap)
+    trigger_nominal = camera.trigger_distance_m(gsd, obj.front_overlap)
     cv = np.asarray(poly.exterior.coords) @ v
     vmin, vmax = float(cv.min()), float(cv.max())
 
     def line(off: float) -> _Line:
-        return _profile(keep, poly, u, v, off, distance, nominal, extend, relief_fraction, max_climb_deg)
+        """The line at ``off``, extended beyond the polygon by half a trigger distance over level
+        ground, up to three quarters where the terrain under it falls 10 % of ``d`` or more below
+        the camera's nadir height (the frame's far edge then sees the ground coarser)."""
+        first = _profile(keep, poly, u, v, off, distance, nominal, 0.5 * trigger_nominal, relief_fraction, max_climb_deg)
+        relief = max(0.0, min(1.0, (distance - first.min_depth) / (0.1 * distance)))
+        if relief == 0.0:
+            return first
+        return _profile(keep, poly, u, v, off, distance, nominal, (0.5 + 0.25 * relief) * trigger_nominal,
+                        relief_fraction, max_climb_deg)
 
     def side_at(depth: float) -> float:
         return MARGIN * camera.footprint_m(camera.gsd_cm(depth))[0]
