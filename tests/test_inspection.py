@@ -250,6 +250,25 @@ def test_the_plan_is_reproducible(scenario2, planned):
     assert np.array_equal(again.timeline.positions(np.arange(0, 40.0, 0.5)), plan.timeline.positions(np.arange(0, 40.0, 0.5)))
 
 
+def test_the_timeline_state_is_its_splines_and_their_derivatives(planned):
+    plan, _ = planned
+    checked = 0
+    for pieces in plan.timeline.pieces:
+        for p in pieces:
+            if p.spline is None:
+                continue
+            tau = np.linspace(0.0, float(p.spline.x[-1]), 23)
+            ref = np.stack([p.spline(tau, nu) for nu in range(4)])
+            ref = ref if p.column is None else ref[:, :, p.column]
+            assert np.allclose(p.state(p.t0 + tau), ref, rtol=1e-9, atol=1e-9)
+            checked += 1
+    assert checked >= 5
+    # past its last piece a UAV holds where it ended, at rest
+    late = plan.timeline.state(np.array([plan.timeline.end + 5.0]))
+    assert np.allclose(late[1:], 0.0)
+    assert np.allclose(late[0, :, 0], plan.timeline.positions(np.array([plan.timeline.end]))[:, 0])
+
+
 def test_inspection_json_gives_the_same_timeline_back(planned):
     from staghunt.inspection.files import read_inspection, read_timeline
 

@@ -126,7 +126,8 @@ class InspectionFlight:
             "separation_limit_m": dict(zip(names, self.separation_limit.tolist())),
             "min_clearance_m": dict(zip(names, self.min_clearance.tolist())),
             "required_clearance_m": self.required_clearance, "lost": self.lost,
-            "decisions": [{"time_s": d.time, "trigger": d.trigger, "latency_s": d.latency_s, "switch_s": d.switch,
+            "decisions": [{"time_s": d.time, "trigger": d.trigger, "latency_s": d.latency_s, "cpu_s": d.cpu_s,
+                           "switch_s": d.switch,
                            "tasks_reallocated": d.tasks_left, "makespan_s": d.allocation.makespan,
                            "notes": list(d.notes)} for d in self.decisions],
             "safe": self.safe, "problems": list(self.problems)}
@@ -186,7 +187,7 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
 
     log = WorkLog(make_tasks(insp, plan_captures(scenario, insp)))
     _check_tasks(log, timeline)
-    warm_up()  # the ground station has its solvers loaded before take-off, not at the first event
+    warm_up(log, scenario)  # the ground station has its solvers loaded before take-off, not at the first event
     alive = np.ones(n, dtype=bool)
     lost: dict[int, tuple[float, np.ndarray]] = {}
     decisions: list[Decision] = []
@@ -196,8 +197,10 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
     times, actual, refs, vels = [], [], [], []
     t, step, end = 0.0, 0, timeline.end + tail_s
     names = [u.name for u in scenario.team]
+    per_tick = int(round(TICK_S * SIM_RATE))
+    ground: dict[int, float] = {}
     while t <= end + 1e-9:
-        if step % int(round(TICK_S * SIM_RATE)) == 0:
+        if step % per_tick == 0:
             while queued and queued[0][0] <= t + 1e-9:  # a decision takes effect
                 _, timeline, _ = queued.pop(0)
                 end = max(end, timeline.end + tail_s)
@@ -232,9 +235,13 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
                 end = max(end, new.end + tail_s)
                 if progress is not None:
                     progress(t, end)
-        state = timeline.state(np.array([t]))[:, :, 0]  # (4, N, 3)
+            # the reference until the next tick (a decision only takes effect at a tick)
+            block = timeline.state((step + np.arange(per_tick)) * dt)  # (4, N, per_tick, 3)
+        state = block[:, :, step % per_tick].copy()  # (4, N, 3)
         for k, (t_lost, at) in lost.items():  # a lost UAV: straight down where it was
-            g = float(np.asarray(scenario.world.terrain.height(at[:1], at[1:2]))[0]) + 0.3
+            if k not in ground:
+                ground[k] = float(np.asarray(scenario.world.terrain.height(at[:1], at[1:2]))[0]) + 0.3
+            g = ground[k]
             z = max(g, at[2] - 1.0 * (t - t_lost))
             state[:, k] = 0.0
             state[0, k] = [at[0], at[1], z]
@@ -263,9 +270,11 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
                             float(scenario.costs.min_clearance), tuple(problems), time.perf_counter() - started, wind)
 
 
-def warm_up() -> None:
+def warm_up(log: WorkLog | None = None, scenario: Scenario | None = None) -> None:
     """Load and run OR-Tools' routing once on a two-task problem (its first use costs seconds of
-    imports and set-up that a decision in flight would otherwise pay)."""
+    imports and set-up that a decision in flight would otherwise pay) and, given the mission's
+    work ``log``, time every way of every capture (a re-allocation then times only its new legs
+    and the rest of a capture a lost UAV left unfinished)."""
     from staghunt.inspection.allocation import Problem
     from staghunt.inspection.routing import solve
     from staghunt.inspection.tasks import Fleet, Task, Way
@@ -276,6 +285,12 @@ def warm_up() -> None:
     tasks = tuple(Task(i, "warm-up", (Way(seg),), seg.duration, None, (0,)) for i in range(2))
     fleet = Fleet(np.zeros((1, 3)), np.zeros((1, 3)), np.zeros(1), np.full(1, 1e4), np.ones(1), ("w",), np.ones(1, bool))
     solve(Problem(tasks, fleet), "ortools", solutions=2, rounds=1, time_cap_s=0.2)
+    if log is not None and scenario is not None:
+        from staghunt.inspection.timeline import capture_piece
+
+        for task in log.tasks:
+            for way in task.ways:
+                capture_piece(0.0, way.segment, scenario.vehicle, task.index)
 
 
 def _check_tasks(log: WorkLog, timeline: Timeline) -> None:

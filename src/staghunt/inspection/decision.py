@@ -59,8 +59,9 @@ class WorkLog:
 @dataclass(frozen=True)
 class Decision:
     """One decision in flight: at ``time`` (s) on ``trigger``, taking ``latency_s`` (measured
-    wall time of the re-allocation and the legs), effective from ``switch`` (s); ``tasks_left``
-    and ``reallocated`` counts, the new ``allocation``, and notes (what became unreachable)."""
+    wall time of the re-allocation and the legs; ``cpu_s`` the CPU time it took, which a loaded
+    machine does not inflate), effective from ``switch`` (s); ``tasks_left`` counts the tasks
+    re-allocated; the new ``allocation``, and notes (what became unreachable)."""
 
     time: float
     trigger: str
@@ -69,6 +70,7 @@ class Decision:
     tasks_left: int
     allocation: Allocation
     notes: tuple[str, ...] = ()
+    cpu_s: float = 0.0
 
 
 def _remainder(seg: CaptureSegment, at: np.ndarray) -> CaptureSegment | None:
@@ -113,7 +115,7 @@ def reallocate(scenario: Scenario, inspection: Inspection, log: WorkLog, timelin
     unfinished capture is cut there, its timeline ends with its landing); ``added``: objectives
     added now (``inspection`` already holds them); ``check_site``: the site changed (cut what is no
     longer safe)."""
-    started = time.perf_counter()
+    started, cpu = time.perf_counter(), time.process_time()
     log.update(timeline, t, lost)
     notes: list[str] = []
     tasks = log.tasks
@@ -189,7 +191,8 @@ def reallocate(scenario: Scenario, inspection: Inspection, log: WorkLog, timelin
     fly = Flight(scenario, inspection, config, seed, tasks)
     new, _, _, problems = fly.build(alloc, fleet=fleet, head=head, after=t)
     latency = max(time.perf_counter() - started, latency_floor)
-    decision = Decision(t, trigger, latency, t + latency, len(fresh), alloc, tuple(notes + problems))
+    decision = Decision(t, trigger, latency, t + latency, len(fresh), alloc, tuple(notes + problems),
+                        time.process_time() - cpu)
     return new, decision
 
 

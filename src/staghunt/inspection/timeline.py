@@ -12,7 +12,8 @@ of every UAV at ``t`` (a UAV past its last piece holds its last position).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from functools import lru_cache
+from functools import cached_property, lru_cache
+from math import factorial
 
 import numpy as np
 from scipy.interpolate import CubicSpline, PPoly
@@ -53,11 +54,27 @@ class Piece:
             out = np.zeros((4, len(t), 3))
             out[0] = self.hold
             return out
-        tau = np.clip(t - self.t0, 0.0, self.spline.x[-1])
-        vals = [self.spline(tau, nu) for nu in range(4)]
+        x, c = self._coefficients
+        tau = np.clip(t - self.t0, 0.0, x[-1])
+        i = np.clip(np.searchsorted(x, tau, side="right") - 1, 0, len(x) - 2)
+        s = (tau - x[i])[:, None]
+        a = c[:, i]  # (degree + 1, T, 3), a[j] multiplies s**j
+        out = np.zeros((4, len(t), 3))
+        for nu in range(min(4, len(a))):
+            acc = np.zeros((len(t), 3))
+            for j in range(len(a) - 1, nu - 1, -1):  # Horner on the nu-th derivative
+                acc = acc * s + a[j] * (factorial(j) // factorial(j - nu))
+            out[nu] = acc
+        return out
+
+    @cached_property
+    def _coefficients(self) -> tuple[np.ndarray, np.ndarray]:
+        """The spline's breakpoints ``(m + 1,)`` and its power-basis coefficients in ascending
+        order ``(degree + 1, m, 3)`` (this piece's column of a team spline)."""
+        c = self.spline.c[::-1]
         if self.column is not None:
-            vals = [v[:, self.column] for v in vals]
-        return np.stack(vals)
+            c = c[:, :, self.column]
+        return np.asarray(self.spline.x, dtype=float), np.ascontiguousarray(c, dtype=float)
 
 
 def _spline_piece(kind: str, t0: float, points: np.ndarray, spline: CubicSpline, column: int | None, **kw) -> Piece:
@@ -168,6 +185,10 @@ class Timeline:
     def end(self) -> float:
         return max((p[-1].t1 for p in self.pieces if p), default=0.0)
 
+    @cached_property
+    def _starts(self) -> tuple[np.ndarray, ...]:
+        return tuple(np.array([p.t0 for p in pieces]) for pieces in self.pieces)
+
     def ends(self) -> np.ndarray:
         """``(N,)`` when each UAV's last piece ends."""
         return np.array([p[-1].t1 if p else 0.0 for p in self.pieces])
@@ -177,7 +198,7 @@ class Timeline:
         t = np.atleast_1d(np.asarray(t, dtype=float))
         out = np.zeros((4, self.n, len(t), 3))
         for n, pieces in enumerate(self.pieces):
-            starts = np.array([p.t0 for p in pieces])
+            starts = self._starts[n]
             which = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(pieces) - 1)
             for i in np.unique(which):
                 sel = which == i
