@@ -1,25 +1,93 @@
-"""Two ways to compile a large piece of the kernel once instead of once per caller.
+"""How the kernel is compiled: once per piece, cached as a whole, and quickly the first time.
 
 A function decorated with ``numba.njit`` is compiled on its own (with a Python wrapper and its
 own machine code) and then compiled *again* inside every jitted caller, whose module links and
 re-optimises it. For the large sections of the kernel that multiplies the one-time compile.
 
+- ``compiled``: the kernels' ``njit`` (no ``fastmath``, NumPy's error model, the GIL released),
+  cached on disk under a stamp of *every* kernel module (:data:`KERNEL_MODULES`): Numba's own
+  stamp covers the file that defines a function only, while an entry embeds code from several
+  files, so a change in one of them would otherwise leave a stale entry in the cache.
 - ``subroutine``: a function used by one caller only is typed and lowered only as part of that
-  caller (through Numba's own mechanism for internal helpers,
-  ``BaseContext.compile_subroutine``), so its code is optimised and emitted once, and it is
-  cached with the caller (``cache=True`` on the caller). It cannot be called from Python.
+  caller (through Numba's mechanism for internal helpers), so its code is optimised and emitted
+  once, in the caller, and cached with it. Unlike ``BaseContext.compile_subroutine``, its own
+  library is never optimised or turned into machine code (:func:`_link_only_class`): that
+  saved about 2 s of the first compilation of each large entry. It cannot be called from Python.
 - ``entry_call``: an ``njit`` entry that Python and several jitted callers all call is called
   from the jitted ones through its address, found at run time in a table of its compiled code
   (``entry_table``), so that no caller links or re-optimises it.
+
+Measured on the first compilation (``benchmarks/README.md``, "First run"): code that allocates
+an array, assigns a slice or calls ``np.argmax`` inside a kernel makes Numba compile its
+error-message formatting (about 3 s per process); the kernels take their buffers from the
+caller and loop instead.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import inspect
+import os
 from typing import Any, Callable
 
+from numba import njit
 from numba.core import compiler, config, types
+from numba.core.caching import CompileResultCacheImpl, FunctionCache
 from numba.extending import intrinsic
+
+KERNEL_MODULES = ("jit", "fastmath", "layout", "geometry", "uav_kernel", "team_kernel", "search_kernels", "kernels")
+"""The modules of ``staghunt.engine`` whose code ends up in the compiled entries: a change in any
+of them makes every cached entry stale (:func:`kernel_stamp`)."""
+
+
+def kernel_stamp() -> bytes:
+    """SHA-256 over the sources of :data:`KERNEL_MODULES` (read once per process and change)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    files = [os.path.join(here, f"{name}.py") for name in KERNEL_MODULES]
+    return _stamp(tuple((f, os.stat(f).st_mtime_ns, os.stat(f).st_size) for f in files))
+
+
+@functools.lru_cache(maxsize=8)
+def _stamp(files: tuple[tuple[str, int, int], ...]) -> bytes:
+    digest = hashlib.sha256()
+    for path, _, _ in files:
+        with open(path, "rb") as f:
+            digest.update(f.read())
+    return digest.digest()
+
+
+class _KernelStamp:
+    """A cache locator's mixin: the source stamp is :func:`kernel_stamp`."""
+
+    def get_source_stamp(self) -> bytes:
+        return kernel_stamp()
+
+
+class _KernelCacheImpl(CompileResultCacheImpl):
+    _locator_classes = [type(f"Kernel{c.__name__}", (_KernelStamp, c), {})
+                        for c in CompileResultCacheImpl._locator_classes]
+
+
+class _KernelCache(FunctionCache):
+    """Numba's on-disk cache of a function (same places, ``NUMBA_CACHE_DIR`` rules), stamped by
+    :func:`kernel_stamp`."""
+
+    _impl_class = _KernelCacheImpl
+
+
+def compiled(parallel: bool = False) -> Callable[[Callable[..., Any]], Any]:
+    """``njit`` for the kernels (``nogil``, NumPy's error model, no ``fastmath``; ``parallel``
+    for a ``prange`` loop), cached on disk with :class:`_KernelCache`. With
+    ``NUMBA_DISABLE_JIT=1`` the plain function is returned."""
+
+    def wrap(fn: Callable[..., Any]) -> Any:
+        dispatcher = njit(nogil=True, error_model="numpy", parallel=parallel)(fn)
+        if not config.DISABLE_JIT:
+            dispatcher._cache = _KernelCache(dispatcher.py_func)
+        return dispatcher
+
+    return wrap
 
 
 def subroutine(fn: Callable[..., None]) -> Any:
@@ -31,12 +99,7 @@ def subroutine(fn: Callable[..., None]) -> Any:
     params = list(inspect.signature(fn).parameters)
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        flags = compiler.Flags()
-        flags.error_model = "numpy"
-        flags.nrt = True
-        flags.no_cpython_wrapper = True
-        flags.no_cfunc_wrapper = True
-        cres = context.compile_subroutine(builder, fn, signature, flags=flags)
+        cres = _link_only_subroutine(context, fn, signature)
         return context.call_internal(builder, cres.fndesc, signature, args)
 
     names = ", ".join(params)
@@ -48,6 +111,63 @@ def subroutine(fn: Callable[..., None]) -> Any:
     return intrinsic(typer)
 
 
+_LINK_ONLY: dict[Any, Any] = {}
+
+
+def _link_only_subroutine(context: Any, fn: Callable[..., Any], signature: Any) -> Any:
+    """``fn`` compiled for ``signature`` (NumPy's error model, no Python wrapper) into a library
+    that is never optimised or turned into machine code on its own (:func:`_link_only_class`):
+    its IR is linked into the callers' libraries, optimised and emitted there. Compiled once per
+    process, signature and target context; linked into the library being built."""
+    from numba.core.compiler_lock import global_compiler_lock
+
+    key = (fn.__code__, signature, type(context.error_model), id(context))
+    cres = _LINK_ONLY.get(key)
+    if cres is None:
+        with global_compiler_lock:
+            flags = compiler.Flags()
+            flags.error_model = "numpy"
+            flags.nrt = True
+            flags.no_cpython_wrapper = True
+            flags.no_cfunc_wrapper = True
+            flags.no_compile = True
+            library = _link_only_class()(context.codegen(), fn.__name__)
+            cres = compiler.compile_internal(context.typing_context, context, library, fn, signature.args,
+                                             signature.return_type, flags, locals={})
+        _LINK_ONLY[key] = cres
+    context.active_code_library.add_linking_library(cres.library)
+    return cres
+
+
+_CLASS: list[Any] = []
+
+
+def _link_only_class() -> Any:
+    """A ``JITCodeLibrary`` whose finalisation only links: no optimisation, no machine code, not
+    added to the execution engine (the code is optimised and emitted in its callers)."""
+    if _CLASS:
+        return _CLASS[0]
+    from numba.core.codegen import JITCodeLibrary
+    from numba.core.compiler_lock import require_global_compiler_lock
+
+    class _LinkOnlyLibrary(JITCodeLibrary):
+        def finalize(self) -> None:
+            require_global_compiler_lock()
+            self._raise_if_finalized()
+            seen = set()
+            for library in self._linking_libraries:
+                if library not in seen:
+                    self._reload_init.update(library._reload_init)
+                    seen.add(library)
+                    self._final_module.link_in(library._get_module_for_linking(), preserve=True)
+            self._final_module.verify()
+            self._finalize_dynamic_globals()
+            self._finalized = True
+
+    _CLASS.append(_LinkOnlyLibrary)
+    return _LinkOnlyLibrary
+
+
 def entry_call(dispatcher: Any) -> Any:
     """An intrinsic ``call(entries, probe, *args)`` that runs ``dispatcher``'s compiled code for
     ``args`` through its address, looked up at run time in ``entries`` (:func:`entry_table`);
@@ -57,10 +177,12 @@ def entry_call(dispatcher: Any) -> Any:
     module and optimises it again there; for the two large kernel entries that tripled the
     one-time compile of the callers. Through its address, the callee is compiled (and cached)
     once, on its own, and every caller is compiled without it; the call itself costs what a
-    direct call does (measured: see ``benchmarks/README.md``). The callee is compiled for the
-    call's argument types (literals made plain) when the caller is; the caller keeps its
-    fingerprint and, at run time, raises ``RuntimeError`` if ``entries`` has no code for it (a
-    parallel loop does not pass an exception on reliably: probe once before it). The address is
+    direct call does (measured: see ``benchmarks/README.md``). The caller is compiled without
+    the callee (so the two may compile at once, in two processes): it keeps the fingerprint of
+    the call's argument types (literals made plain) and, at run time, raises ``RuntimeError``
+    if ``entries`` has no code for them (a parallel loop does not pass an exception on reliably:
+    probe once before it); whoever runs the caller has compiled or loaded the callee for those
+    types (:func:`staghunt.engine.compilation.prepare`). The address is
     an argument, never a constant, so a cached caller stays valid in a new process. With
     ``NUMBA_DISABLE_JIT=1`` the plain function is called."""
     if config.DISABLE_JIT:
@@ -76,7 +198,6 @@ def entry_call(dispatcher: Any) -> Any:
 
     def typer(typingctx: Any, entries: Any, probe: Any, *args: Any) -> Any:  # noqa: ARG001
         argtys = tuple(types.unliteral(a) for a in args)
-        dispatcher.compile(argtys)
         fingerprint = signature_fingerprint(argtys)
         message = f"staghunt.engine: no compiled {dispatcher.__name__} for the caller's argument types"
 
