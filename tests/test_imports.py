@@ -241,3 +241,29 @@ def test_planning_leaves_the_simulator_unloaded():
             "from staghunt.missions import export_result, FORMATS\n"
             "assert export_result.__module__ == 'staghunt.missions.export' and len(FORMATS) == 7\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_commands_that_plan_nothing_compile_nothing(tmp_path):
+    """``show``, ``schema``, ``methods`` and ``evaluate`` (the NumPy reference's costs) neither
+    load the compiled kernels nor write to Numba's cache: a first ``staghunt show`` costs no
+    compilation (``export`` and ``plan`` are covered where they run)."""
+    import os
+    import subprocess
+    import sys
+
+    cache = tmp_path / "numba-cache"
+    code = (
+        "import json, sys, numpy as np, staghunt\n"
+        "from staghunt.cli import main\n"
+        "s = staghunt.load_scenario('scenario1')\n"
+        "t = np.linspace(0.2, 0.8, 4)[:, None]\n"
+        "uavs = [{'waypoints': (u.start + t * (np.array(u.goal) - u.start)).tolist()} for u in s.team]\n"
+        f"json.dump({{'uavs': uavs}}, open({str(tmp_path / 'paths.json')!r}, 'w'))\n"
+        f"codes = [main(a) for a in (['show', 'scenario2'], ['schema'], ['methods'],\n"
+        f"                           ['evaluate', 'scenario1', {str(tmp_path / 'paths.json')!r}])]\n"
+        "assert codes[:3] == [0, 0, 0] and codes[3] in (0, 3), codes\n"
+        "assert 'staghunt.engine.kernels' not in sys.modules\n"
+    )
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache))
+    subprocess.run([sys.executable, "-c", code], check=True, env=env, stdout=subprocess.DEVNULL)
+    assert not cache.exists() or not any(cache.rglob("*.nbi"))

@@ -16,6 +16,7 @@ An evaluation alone (:data:`EVALUATION`) compiles only the two entries of the pa
 
 from __future__ import annotations
 
+import fcntl
 import logging
 import os
 import subprocess
@@ -142,12 +143,52 @@ def cache_is_warm(entries: Iterable[str]) -> bool | None:
 # --------------------------------------------------------------------------------------------
 
 
+LATER_LOCK = "staghunt-later.lock"
+"""A file in the cache directory that the helper compiling :data:`LATER` holds locked (``flock``)
+while it does: a process that finds it locked does not start another helper for them (the
+workers of a sweep all starting at once), and waits for the cache instead."""
+
+
+def _later_lock() -> int | None:
+    """A descriptor of :data:`LATER_LOCK` (``None`` if there is no cache directory to hold it)."""
+    try:
+        path = os.path.join(kn.iterate._cache.cache_path, LATER_LOCK)
+        return os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except (AttributeError, OSError, TypeError):
+        return None
+
+
+def _later_busy() -> bool:
+    """Whether another process's helper is compiling :data:`LATER` now (it holds the lock)."""
+    fd = _later_lock()
+    if fd is None:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return False
+    except OSError:
+        return True
+    finally:
+        os.close(fd)
+
+
 def compile_phases(phases: str) -> None:
     """Entry point of the helper subprocess: compile the entries of each phase (``uav_pass,polish;
     team_search,iterate``: phases separated by ``;``, entries by ``,``), writing the phase to
-    stdout once its entries are in the cache."""
+    stdout once its entries are in the cache. The phase of :data:`LATER` holds
+    :data:`LATER_LOCK` (another helper holding it: that phase is left to it)."""
     for phase in phases.split(";"):
-        _compile([e for e in phase.split(",") if e])
+        entries = [e for e in phase.split(",") if e]
+        if set(entries) <= set(LATER):
+            fd = _later_lock()
+            try:
+                if fd is not None:
+                    fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                print(phase, flush=True)
+                continue
+        _compile(entries)
         print(phase, flush=True)
 
 
@@ -217,6 +258,9 @@ def prepare(notify: Callable[[str], None] | None = None, parallel: bool = True,
             return time.perf_counter() - t0
         cold_later = [e for e in later if not cache_is_warm([e])]
         helper_now = [e for e in cold_now if e in HELPER_PART] if not warm else []
+        if cold_later and not helper_now and _later_busy():  # another process's helper compiles them
+            _later.update(poll=True)
+            cold_later = []
         phases = [p for p in (helper_now, cold_later) if p]
         helper = _spawn_helper(phases) if phases and parallel and usable_cores() > 1 else None
         if not warm:
@@ -256,9 +300,24 @@ def ready(entry: str, wait: bool = False) -> bool:
             return False
         if not done.wait(HELPER_TIMEOUT_S):
             _later["helper"].kill()  # hung: compiled here
+    elif _later.get("poll") and not wait and not _in_cache(entry):
+        return False  # another process's helper is compiling it: taken from the cache once there
     with _lock:
         _compile([entry])
     return True
+
+
+_POLL_EVERY_S = 1.0
+_polled: dict[str, float] = {}
+
+
+def _in_cache(entry: str) -> bool:
+    """Whether ``entry`` is in the cache now (its index read at most once a second)."""
+    now = time.monotonic()
+    if now - _polled.get(entry, -_POLL_EVERY_S) < _POLL_EVERY_S:
+        return False
+    _polled[entry] = now
+    return bool(cache_is_warm([entry]))
 
 
 def team_search_ready(wait: bool = False) -> bool:
