@@ -172,9 +172,10 @@ def test_the_module_graph_sees_type_checking_imports(tmp_path):
 
 
 MAX_MODULE_LINES = 450
-BEING_REBUILT = {"flight/replan.py", "flight/loop.py"}
-"""Modules over :data:`MAX_MODULE_LINES` rebuilt by another change (issue 38), held to the limit
-once it lands."""
+BEING_REBUILT = {"flight/replan.py", "flight/loop.py", "inspection/allocation.py", "scenario/loader.py"}
+"""Modules over :data:`MAX_MODULE_LINES` that other changes in progress are rebuilding (issue 38:
+the re-planner; the inspection work: its allocation and the scenario's objectives), held to the
+limit once they land: remove a name here when its module is split."""
 
 
 def test_every_module_is_at_most_450_lines():
