@@ -9,10 +9,11 @@ re-optimises it. For the large sections of the kernel that multiplies the one-ti
   stamp covers the file that defines a function only, while an entry embeds code from several
   files, so a change in one of them would otherwise leave a stale entry in the cache.
 - ``subroutine``: a function used by one caller only is typed and lowered only as part of that
-  caller (through Numba's mechanism for internal helpers), so its code is optimised and emitted
-  once, in the caller, and cached with it. Unlike ``BaseContext.compile_subroutine``, its own
-  library is never optimised or turned into machine code (:func:`_link_only_class`): that
-  saved about 2 s of the first compilation of each large entry. It cannot be called from Python.
+  caller (through Numba's own mechanism for internal helpers, ``BaseContext.compile_subroutine``),
+  and cached with it. It cannot be called from Python. (A library that only links the
+  subroutine's code, never optimising it on its own, saved about 2 s of the first compilation of
+  each large entry but made the warm Algorithm 1 13-49 % slower: LLVM's second pass over the
+  optimised subroutine finds more; not kept, ``benchmarks/README.md``, "First run".)
 - ``entry_call``: an ``njit`` entry that Python and several jitted callers all call is called
   from the jitted ones through its address, found at run time in a table of its compiled code
   (``entry_table``), so that no caller links or re-optimises it.
@@ -99,7 +100,12 @@ def subroutine(fn: Callable[..., None]) -> Any:
     params = list(inspect.signature(fn).parameters)
 
     def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        cres = _link_only_subroutine(context, fn, signature)
+        flags = compiler.Flags()
+        flags.error_model = "numpy"
+        flags.nrt = True
+        flags.no_cpython_wrapper = True
+        flags.no_cfunc_wrapper = True
+        cres = context.compile_subroutine(builder, fn, signature, flags=flags)
         return context.call_internal(builder, cres.fndesc, signature, args)
 
     names = ", ".join(params)
@@ -109,63 +115,6 @@ def subroutine(fn: Callable[..., None]) -> Any:
     typer.__doc__ = fn.__doc__
     typer.__module__ = fn.__module__
     return intrinsic(typer)
-
-
-_LINK_ONLY: dict[Any, Any] = {}
-
-
-def _link_only_subroutine(context: Any, fn: Callable[..., Any], signature: Any) -> Any:
-    """``fn`` compiled for ``signature`` (NumPy's error model, no Python wrapper) into a library
-    that is never optimised or turned into machine code on its own (:func:`_link_only_class`):
-    its IR is linked into the callers' libraries, optimised and emitted there. Compiled once per
-    process, signature and target context; linked into the library being built."""
-    from numba.core.compiler_lock import global_compiler_lock
-
-    key = (fn.__code__, signature, type(context.error_model), id(context))
-    cres = _LINK_ONLY.get(key)
-    if cres is None:
-        with global_compiler_lock:
-            flags = compiler.Flags()
-            flags.error_model = "numpy"
-            flags.nrt = True
-            flags.no_cpython_wrapper = True
-            flags.no_cfunc_wrapper = True
-            flags.no_compile = True
-            library = _link_only_class()(context.codegen(), fn.__name__)
-            cres = compiler.compile_internal(context.typing_context, context, library, fn, signature.args,
-                                             signature.return_type, flags, locals={})
-        _LINK_ONLY[key] = cres
-    context.active_code_library.add_linking_library(cres.library)
-    return cres
-
-
-_CLASS: list[Any] = []
-
-
-def _link_only_class() -> Any:
-    """A ``JITCodeLibrary`` whose finalisation only links: no optimisation, no machine code, not
-    added to the execution engine (the code is optimised and emitted in its callers)."""
-    if _CLASS:
-        return _CLASS[0]
-    from numba.core.codegen import JITCodeLibrary
-    from numba.core.compiler_lock import require_global_compiler_lock
-
-    class _LinkOnlyLibrary(JITCodeLibrary):
-        def finalize(self) -> None:
-            require_global_compiler_lock()
-            self._raise_if_finalized()
-            seen = set()
-            for library in self._linking_libraries:
-                if library not in seen:
-                    self._reload_init.update(library._reload_init)
-                    seen.add(library)
-                    self._final_module.link_in(library._get_module_for_linking(), preserve=True)
-            self._final_module.verify()
-            self._finalize_dynamic_globals()
-            self._finalized = True
-
-    _CLASS.append(_LinkOnlyLibrary)
-    return _LinkOnlyLibrary
 
 
 def entry_call(dispatcher: Any) -> Any:
