@@ -55,7 +55,7 @@ HELPER_PART = ("uav_pass", "polish")
 """What the helper compiles on a cold cache while this process compiles the rest of what is
 asked (``team_pass``, ``select_global``, ``iterate_serial``): about even halves."""
 
-COLD_COMPILE_MEASURED = "63-71 s on a busy 2-core machine (load 8-9), less on an idle one"
+COLD_COMPILE_MEASURED = "about a minute on a busy 2-core machine (63-71 s at load 8-9), less on an idle one"
 """The one-time compilation announced on a cold cache: :data:`RUN` in two processes, as measured
 on this project's 2-core machines (``benchmarks/README.md``, "First run (issue 39)")."""
 COLD_COMPILE_ESTIMATE_S = 71
