@@ -346,7 +346,7 @@ def bad_cases(tmp_path: Path) -> dict[str, list[str]]:
         "negative seed": ["plan", "scenario1", "--seed", "-3", *TINY, *out],
         "out is a file": ["plan", "scenario1", *TINY, "--out", a_file],
         "out under a file": ["plan", "scenario1", *TINY, "--out", a_file + "/sub"],
-        "unknown command": ["fly", "scenario1"],
+        "unknown command": ["teleport", "scenario1"],
         "no command": [],
         "show unknown": ["show", "nowhere.toml"],
         "evaluate wrong N": ["evaluate", "scenario1", wrong_n],
@@ -385,6 +385,7 @@ def test_bad_input_one_line_exit_2(tmp_path, capsys, case):
 def test_bad_input_messages_are_specific(tmp_path, capsys):
     cases = bad_cases(tmp_path)
     expect = {
+        "unknown command": "argument COMMAND: invalid choice: 'teleport'",
         "unknown key": "bogus",
         "start inside obstacle": "inside obstacle",
         "nan weight": "finite",

@@ -294,7 +294,7 @@ def test_kept_evaluation_passes_return_their_own_arrays_on_every_thread():
     evaluating at once get what one thread gets."""
     from concurrent.futures import ThreadPoolExecutor
 
-    from staghunt.engine.numba_engine import EVALUATION_ROWS
+    from staghunt.engine.passes import EVALUATION_ROWS
 
     model = make_model(3)
     a, b = population(model, 20, 10, seed=21), population(model, 20, 10, seed=22)
@@ -322,7 +322,7 @@ def test_dominance_kernels_match_reference():
     for i in range(P):
         for j in range(0, P, 7):
             want = bool(dominates(cost[:, i], viol[i], cost[:, j], viol[j]))
-            assert kn._dominates(cost, i, viol[i], cost, j, viol[j]) == want
+            assert kn.dominates_at(cost, i, viol[i], cost, j, viol[j]) == want
     g = np.array([[2.0], [2.0], [2.0]])
     for gv in (0.0, 1.0):
         mask = dominates(cost.T, viol, g[:, 0], np.float64(gv))
@@ -477,7 +477,7 @@ def test_deviation_passes_give_their_buffers_back():
     from staghunt.engine.deviations import Deviations
 
     model, base = _straight_routes(3, None)
-    dev = Deviations(model, base, 1)
+    dev = Deviations(model, base, 1, fast_evaluate(model, base[None]))
     paths = base[1][None] + np.random.default_rng(3).normal(0.0, 2.0, size=(5, *base[1].shape))
     first = dev(paths)
     path, Jn, spent = dev.polish(float(evaluate(model, base[None]).total[0, 1]), 200, 1.0, 0.1)
@@ -671,54 +671,85 @@ def test_team_search_runs_the_python_loop_while_its_kernel_compiles(monkeypatch)
     reaching the same plan; once the helper is done, the kernel is loaded and used."""
     import threading
 
-    from staghunt.engine import numba_engine as ne
+    from staghunt.engine import compilation
     from staghunt.solvers.game import team_slide
 
     model, base = _straight_routes(3, None)
     engine = NumbaEngine(threads=1)
-    ne.prepare()
+    engine.prepare()
     compiling = threading.Event()
-    monkeypatch.setattr(ne, "_later", {"done": compiling, "helper": None})
+    monkeypatch.setattr(compilation, "_later", {"done": compiling, "helper": None})
+    monkeypatch.setattr(compilation, "_loaded", compilation._loaded - {"team_search"})
     J = engine.evaluate(model, base[None]).total[0]
-    assert engine.team_search(model, base, J, 0, 0) is None and not ne.team_search_ready()
+    assert engine.team_search(model, base, J, 0, 0) is None and not compilation.team_search_ready()
     meanwhile = team_slide(model, base, 5000, engine.evaluate)
     compiling.set()  # the helper has written it to the cache
-    assert engine.team_search(model, base, J, 0, 0) is not None and ne._later == {}
+    assert engine.team_search(model, base, J, 0, 0) is not None and "team_search" in compilation._loaded
     compiled = team_slide(model, base, 5000, engine.evaluate)
     assert meanwhile[1] == compiled[1] and np.array_equal(meanwhile[0], compiled[0])
     assert meanwhile[0] is not base
+
+
+def test_a_run_goes_on_one_thread_while_the_parallel_loop_compiles(monkeypatch):
+    """After a cold compile the helper may still be compiling the parallel loop beside the first
+    run: a run asked for two threads then runs on one (the serial loop), reports so, and gives the
+    run of one thread; once the loop is loaded, it runs on two."""
+    import threading
+
+    from staghunt.engine import compilation
+    from staghunt.engine import numba_engine as ne
+
+    _, problem = scenario2_problem()
+    settings = SolverSettings(particles=256, iterations=30, waypoints=10)
+    monkeypatch.setattr(ne, "usable_cores", lambda: 2)
+    monkeypatch.setattr(ne, "kernel_threads", lambda: 2)
+    one = NumbaEngine(threads=1).run_swarm(problem, settings, np.random.default_rng(4))
+    compiling = threading.Event()
+    monkeypatch.setattr(compilation, "_later", {"done": compiling, "helper": None})
+    monkeypatch.setattr(compilation, "_loaded", compilation._loaded - {"iterate"})
+    engine = NumbaEngine(threads=2)
+    meanwhile = engine.run_swarm(problem, settings, np.random.default_rng(4))
+    assert engine.last_threads == {1: settings.iterations} and not compilation.parallel_ready()
+    compiling.set()
+    later = engine.run_swarm(problem, settings, np.random.default_rng(4))
+    assert engine.last_threads == {2: settings.iterations} and "iterate" in compilation._loaded
+    for out in (meanwhile, later):
+        assert np.array_equal(out.best, one.best) and np.array_equal(out.history, one.history)
 
 
 def test_kernel_arguments_bound_by_name_are_the_hand_written_ones():
     """The arguments bound from the kernels' parameter names (engine.arrays.kernel_args) are the
     very objects, in the order, that the hand-written calls they replaced passed."""
     from staghunt.engine.arrays import kernel_args, model_arrays, no_swarm
-    from staghunt.engine.loop import ITERATE_PER_CALL, _RunState
-    from staghunt.engine.numba_engine import TEAM_PASS_PER_CALL, UAV_PASS_PER_CALL, _Pass
+    from staghunt.engine.loop import ITERATE_PER_CALL, RunState
+    from staghunt.engine.passes import TEAM_PASS_PER_CALL, UAV_PASS_PER_CALL, Pass
     from staghunt.engine.scratch import Scratch
 
     model = CostModel.from_scenario(load_scenario("scenario2"))
     N, K = model.n_uavs, 4
-    run = _Pass(model_arrays(model), no_swarm(N, K), N, K, 0, 1, 0, wp=np.zeros((8, N, K, 3)))
+    run = Pass(model_arrays(model), no_swarm(N, K), N, K, 0, 1, 0, wp=np.zeros((8, N, K, 3)))
     run.key = np.uint64(99)  # the run's own key must not stand in for iterate's
     w, ma, sa = Scratch(N, K, 0, run.B), run.ma, run.sa
     uav = (run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets, sa.fixed, ma.par, run.wp,
            ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth,
-           w.prev, w.bits1, w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio)
+           w.prev, w.bits1, w.bits2, w.ubits1, w.ubits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms,
+           w.vio)
     team = (w.px, w.py, w.pz, ma.uav, ma.weights, ma.heads, ma.tails, ma.mu, ma.ref_diff, ma.par, w.form, w.hit,
-            w.tmp, w.acc, w.acc2, w.flag, w.better, w.terms, w.vio, w.res, run.X, run.PB,
+            w.tmp, w.acc, w.acc2, w.flag, w.better, w.box, w.near, w.terms, w.vio, w.res, run.X, run.PB,
             run.pcost, run.pviol, run.cost, run.viol, run.J, sa.players, run.terms_out, run.vio_out, run.res_out)
-    extra = _RunState(np.uint64(1), np.zeros(3), np.zeros((1, 1)), np.zeros((2, 1)), np.zeros((2, N)), np.zeros(2))
+    extra = RunState(np.uint64(1), np.zeros(3), np.zeros((1, 1)), np.zeros((2, 1)), np.zeros((2, N)), np.zeros(2))
     loop = (extra.key, extra.state, run.X, run.V, run.PB, run.gbest, run.initial, sa.sw, sa.member, sa.offsets,
             sa.fixed, ma.par, ma.uav, ma.cyl, ma.prm, ma.pedge, ma.grid, ma.weights, ma.heads, ma.tails, ma.mu,
             ma.ref_diff, sa.players, run.pcost, run.pviol, run.cost, run.viol, run.J, extra.gcost, extra.history,
             extra.rhistory, extra.hviol, w.sww, w.px, w.py, w.pz, w.ph, w.stx, w.sty, w.sth, w.prev, w.bits1,
-            w.bits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form, w.hit,
-            w.better, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries, run.team_entries)
+            w.bits2, w.ubits1, w.ubits2, w.seg, w.sub, w.ang, w.tmp, w.acc, w.acc2, w.flag, w.terms, w.vio, w.form,
+            w.hit, w.better, w.box, w.near, w.res, run.wp, run.terms_out, run.vio_out, run.res_out, run.uav_entries,
+            run.team_entries)
     for kernel, sources, per_call, expected in (
             (kn.uav_pass, (run, ma, sa, w), UAV_PASS_PER_CALL, uav),
             (kn.team_pass, (run, ma, sa, w), TEAM_PASS_PER_CALL, team),
-            (kn.iterate, (extra, run, ma, sa, w), ITERATE_PER_CALL, loop)):
+            (kn.iterate, (extra, run, ma, sa, w), ITERATE_PER_CALL, loop),
+            (kn.iterate_serial, (extra, run, ma, sa, w), ITERATE_PER_CALL, loop)):
         bound = kernel_args(kernel, *sources, per_call=per_call)
         assert len(bound) == len(expected) and all(a is b for a, b in zip(bound, expected)), kernel.__name__
     with pytest.raises(TypeError, match="does not start with"):
@@ -731,7 +762,8 @@ def test_callers_reach_the_kernel_entries_through_their_addresses(monkeypatch):
     without the caller's signature stops the run with a clear error (from the serial loop, the
     parallel one and the polish), never a jump to a wrong address."""
     from staghunt.engine.jit import entry_table, signature_fingerprint
-    from staghunt.engine.numba_engine import _Pass, prepare
+    from staghunt.engine.compilation import prepare
+    from staghunt.engine.passes import Pass
     from staghunt.solvers.local import polish
 
     prepare()
@@ -745,7 +777,7 @@ def test_callers_reach_the_kernel_entries_through_their_addresses(monkeypatch):
     problem = team_problem(model, 4, 0.5)
     plan_ = plan(load_scenario("scenario2"), method="paper", seed=1,
                  settings=SolverSettings(particles=40, iterations=5, waypoints=4)).waypoints
-    monkeypatch.setattr(_Pass, "team_entries", property(lambda self: np.zeros((0, 2), dtype=np.int64)))
+    monkeypatch.setattr(Pass, "team_entries", property(lambda self: np.zeros((0, 2), dtype=np.int64)))
     for threads, particles in ((1, 16), (2, 256)):
         with pytest.raises(RuntimeError, match="no compiled team_pass"):
             NumbaEngine(threads=threads).run_swarm(problem, SolverSettings(particles=particles, iterations=2,

@@ -1342,3 +1342,19 @@ def test_sweep_spec_that_is_a_directory(tmp_path, capsys):
     out = tmp_path / "sweep"
     refused(capsys, "sweep", str(tmp_path), "--out", str(out), expect=r"directory")
     assert not out.exists()
+
+
+def test_export_over_an_older_mission_removes_its_files(capsys, result_file, plan_a_exported):
+    """A mission exported before ``mission.json`` listed its files (no ``files`` key), forced (a
+    ``MISSION_UNSAFE.txt``): a re-export with fewer formats removes that mission's files it does
+    not write, the stale warning above all, and keeps the user's."""
+    out = plan_a_exported
+    manifest = json.loads((out / "mission.json").read_text())
+    del manifest["files"]
+    (out / "mission.json").write_text(json.dumps(manifest))
+    (out / "MISSION_UNSAFE.txt").write_text("the older mission was forced\n")
+    code, _, err = run(capsys, "export", str(result_file), "--out", str(out), "--no-plots", "--formats", "plan")
+    assert code == 0, err
+    n = len(manifest["max_speed_m_s"])
+    assert sorted(p.name for p in out.iterdir()) == sorted(["mission.json", "notes.txt"]
+                                                         + [f"uav{i}.plan" for i in range(1, n + 1)])

@@ -142,3 +142,20 @@ def test_no_global_matplotlib_state(game_result: staghunt.PlanResult, tmp_path: 
 def test_rejects_bad_dpi(game_result: staghunt.PlanResult, tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="dpi"):
         plots.save_figures(game_result, tmp_path, dpi=0)
+
+
+def test_equilibria_title_fits_its_figure(game_result: staghunt.PlanResult) -> None:
+    """The equilibria figure's title (a plan's long one) lies within the figure, not cut at
+    either end."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from staghunt.plots.common import _title
+    from staghunt.plots.equilibria import EquilibriaPanel, equilibria_figure
+
+    J = np.array([[10738.4, 792.6, 2952.6], [10717.6, 981.7, 2992.5], [10894.9, 1931.4, 2513.9]])
+    panel = EquilibriaPanel(_title(game_result, "Equilibria found"), J, np.array([False, False, False]),
+                            J[:1], tuple(game_result.uav_names))
+    fig = equilibria_figure([panel])
+    FigureCanvasAgg(fig).draw()
+    box = fig.axes[0].title.get_window_extent()
+    assert 0 <= box.x0 and box.x1 <= fig.bbox.x1 and box.y1 <= fig.bbox.y1

@@ -212,3 +212,26 @@ def test_geotiff_changed_after_planning_is_refused(tmp_path):
     write_plane_dem(tif, 2.0, 200.0, offset=4.0)
     with pytest.raises(ScenarioError, match=r"ground\.sha256: the GeoTIFF .* does not match this checksum \(file changed\?\)"):
         scenario_from_dict(data, name="t")
+
+
+def test_loading_a_geotiff_does_not_hash_the_file(tmp_path, monkeypatch):
+    """A GeoTIFF can take seconds to hash: loading a scenario reads it but hashes nothing; its
+    SHA-256 is made when asked for (the scenario's dump, a ``ground.sha256`` check), once for a
+    file that did not change."""
+    import hashlib
+
+    import staghunt.scenario.dem as dem
+
+    tif = tmp_path / "g.tif"
+    write_plane_dem(tif, 2.0, 200.0)
+    p = tmp_path / "s.toml"
+    p.write_text(site_toml(-100.0, -100.0, body=f'[ground]\nkind = "geotiff"\nfile = "{tif}"\ncell_size = 5.0\n'))
+    want = hashlib.sha256(tif.read_bytes()).hexdigest()
+    hashes: list[object] = []
+    real = hashlib.sha256
+    monkeypatch.setattr(dem.hashlib, "sha256", lambda *a: hashes.append(a) or real(*a))
+    scenario = load_scenario(str(p))
+    assert hashes == []
+    for _ in range(2):
+        assert scenario_to_dict(scenario)["ground"]["sha256"] == want
+    assert len(hashes) == 1

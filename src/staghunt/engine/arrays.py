@@ -18,7 +18,7 @@ from typing import Any, Callable
 import numpy as np
 
 from staghunt.costs import CostModel
-from staghunt.engine import kernels as kn
+from staghunt.engine import layout as kn
 from staghunt.solvers.problem import SwarmProblem
 
 

@@ -11,8 +11,14 @@ import numpy as np
 from staghunt.costs import CostModel, Costs
 from staghunt.engine import kernels as kn
 from staghunt.engine.arrays import kernel_args, no_swarm
-from staghunt.engine.numba_engine import (POLISH_PER_CALL, TEAM_SEARCH_PER_CALL, _evaluation_pass,
-                                         _model_arrays_cached, _Pass, _releasing, evaluate)
+from staghunt.engine.passes import (
+    POLISH_PER_CALL,
+    TEAM_SEARCH_PER_CALL,
+    Pass,
+    evaluation_pass,
+    model_arrays_cached,
+    releasing,
+)
 
 
 class Deviations:
@@ -22,14 +28,13 @@ class Deviations:
     UAV ``n``'s path and its pairs (``MODE_DEVIATE``). Bit-identical to the full evaluation's
     ``J_n``, and ``inf`` exactly where the full evaluation's total violation is not zero."""
 
-    def __init__(self, model: CostModel, plan: np.ndarray, n: int, costs: Costs | None = None) -> None:
-        """``costs``: the compiled :func:`~staghunt.engine.numba_engine.evaluate` of ``plan[None]``
-        if the caller made it (else made here)."""
+    def __init__(self, model: CostModel, plan: np.ndarray, n: int, costs: Costs) -> None:
+        """``costs``: the compiled evaluation of ``plan[None]``
+        (:func:`~staghunt.engine.numba_engine.evaluate`); the kernels are loaded."""
         plan = np.array(plan, dtype=np.float64, order="C", copy=True)
         N, K = plan.shape[0], plan.shape[1]
-        ma = _model_arrays_cached(model)
-        c = costs if costs is not None else evaluate(model, plan[None])
-        constants = np.concatenate([c.terms[0], c.violation[0][:, :2]], axis=1).ravel()
+        ma = model_arrays_cached(model)
+        constants = np.concatenate([costs.terms[0], costs.violation[0][:, :2]], axis=1).ravel()
         self.ma = replace(ma, par=np.concatenate([ma.par, constants]))
         member = np.full(N, -1, dtype=np.int64)
         member[n] = 0
@@ -37,18 +42,18 @@ class Deviations:
         self.plan, self.n = plan, n
         self.lower = np.array(model.lower, dtype=np.float64)
         self.upper = np.array(model.upper, dtype=np.float64)
-        self._runs: dict[int, _Pass] = {}
+        self._runs: dict[int, Pass] = {}
 
-    def _run(self, Q: int) -> _Pass:
+    def _run(self, Q: int) -> Pass:
         """The pass over ``Q`` allocations (the plan with UAV ``n``'s rows to fill), made once per
         batch size (a polish sweep, its combined move) and reused; its block buffers are borrowed
-        from the pool for each call (:meth:`_Pass.ensure_scratch`): a fresh set, about 1 MB of
+        from the pool for each call (:meth:`~staghunt.engine.passes.Pass.ensure_scratch`): a fresh set, about 1 MB of
         zeroed pages for 3 UAVs, cost more than a short polish."""
         run = self._runs.get(Q)
         if run is None:
             N, K = self.plan.shape[0], self.plan.shape[1]
             team = np.repeat(self.plan[None], Q, axis=0)
-            run = self._runs[Q] = _Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
+            run = self._runs[Q] = Pass(self.ma, self.sa, N, K, 0, 1, 0, wp=team)
             run.mode = kn.MODE_DEVIATE
         run.ensure_scratch(1)
         return run
@@ -59,7 +64,7 @@ class Deviations:
         the same path). Returns the ``(K, 3)`` path, its ``J_n`` and the evaluations spent."""
         K = self.plan.shape[1]
         path = self.plan[self.n].copy()
-        with _releasing(self._run(6 * K + 1)) as run:  # the 6 K one-coordinate moves and their combination
+        with releasing(self._run(6 * K + 1)) as run:  # the 6 K one-coordinate moves and their combination
             Jn, spent = kn.polish(self.n, float(step), float(min_step), int(max_evaluations), float(J), self.lower,
                                   self.upper, path, *kernel_args(kn.polish, run, self.ma, self.sa, run.scratch[0],
                                                                  per_call=POLISH_PER_CALL))
@@ -68,7 +73,7 @@ class Deviations:
     def __call__(self, paths: np.ndarray) -> np.ndarray:
         """``(Q,)`` ``J_n`` for ``paths`` ``(Q, K, 3)``; ``inf`` where infeasible."""
         Q = len(paths)
-        with _releasing(self._run(Q)) as run:
+        with releasing(self._run(Q)) as run:
             run.wp[:, self.n] = paths
             run.work(0, Q, 0)
         clear = np.all(run.vio_out.reshape(Q, -1) == 0, axis=1)
@@ -87,7 +92,7 @@ def team_search(model: CostModel, plan: np.ndarray, costs: np.ndarray, max_evalu
     evaluations spent in all."""
     best = np.array(plan, dtype=np.float64, order="C", copy=True)
     N, K = best.shape[0], best.shape[1]
-    run = _evaluation_pass(_model_arrays_cached(model), N, K, (2 if fractions else 6) * K)
+    run = evaluation_pass(model_arrays_cached(model), N, K, (2 if fractions else 6) * K)
     ends = np.ascontiguousarray(np.stack([model.starts, model.goals], axis=1), dtype=np.float64)  # (N, 2, 3)
     spent = kn.team_search(len(fractions) > 0, np.array(fractions, dtype=np.float64), float(step), float(min_step),
                            int(max_evaluations), int(spent), np.array(costs, dtype=np.float64),

@@ -1,25 +1,94 @@
-"""Two ways to compile a large piece of the kernel once instead of once per caller.
+"""How the kernel is compiled: once per piece, cached as a whole, and quickly the first time.
 
 A function decorated with ``numba.njit`` is compiled on its own (with a Python wrapper and its
 own machine code) and then compiled *again* inside every jitted caller, whose module links and
 re-optimises it. For the large sections of the kernel that multiplies the one-time compile.
 
+- ``compiled``: the kernels' ``njit`` (no ``fastmath``, NumPy's error model, the GIL released),
+  cached on disk under a stamp of *every* kernel module (:data:`KERNEL_MODULES`): Numba's own
+  stamp covers the file that defines a function only, while an entry embeds code from several
+  files, so a change in one of them would otherwise leave a stale entry in the cache.
 - ``subroutine``: a function used by one caller only is typed and lowered only as part of that
-  caller (through Numba's own mechanism for internal helpers,
-  ``BaseContext.compile_subroutine``), so its code is optimised and emitted once, and it is
-  cached with the caller (``cache=True`` on the caller). It cannot be called from Python.
+  caller (through Numba's own mechanism for internal helpers, ``BaseContext.compile_subroutine``),
+  and cached with it. It cannot be called from Python. (A library that only links the
+  subroutine's code, never optimising it on its own, saved about 2 s of the first compilation of
+  each large entry but made the warm Algorithm 1 13-49 % slower: LLVM's second pass over the
+  optimised subroutine finds more; not kept, ``benchmarks/README.md``, "First run".)
 - ``entry_call``: an ``njit`` entry that Python and several jitted callers all call is called
   from the jitted ones through its address, found at run time in a table of its compiled code
   (``entry_table``), so that no caller links or re-optimises it.
+
+Measured on the first compilation (``benchmarks/README.md``, "First run"): code that allocates
+an array, assigns a slice or calls ``np.argmax`` inside a kernel makes Numba compile its
+error-message formatting (about 3 s per process); the kernels take their buffers from the
+caller and loop instead.
 """
 
 from __future__ import annotations
 
+import functools
+import hashlib
 import inspect
+import os
 from typing import Any, Callable
 
+from numba import njit
 from numba.core import compiler, config, types
+from numba.core.caching import CompileResultCacheImpl, FunctionCache
 from numba.extending import intrinsic
+
+KERNEL_MODULES = ("jit", "fastmath", "layout", "geometry", "uav_kernel", "team_kernel", "search_kernels", "kernels")
+"""The modules of ``staghunt.engine`` whose code ends up in the compiled entries: a change in any
+of them makes every cached entry stale (:func:`kernel_stamp`)."""
+
+
+def kernel_stamp() -> bytes:
+    """SHA-256 over the sources of :data:`KERNEL_MODULES` (read once per process and change)."""
+    here = os.path.dirname(os.path.abspath(__file__))
+    files = [os.path.join(here, f"{name}.py") for name in KERNEL_MODULES]
+    return _stamp(tuple((f, os.stat(f).st_mtime_ns, os.stat(f).st_size) for f in files))
+
+
+@functools.lru_cache(maxsize=8)
+def _stamp(files: tuple[tuple[str, int, int], ...]) -> bytes:
+    digest = hashlib.sha256()
+    for path, _, _ in files:
+        with open(path, "rb") as f:
+            digest.update(f.read())
+    return digest.digest()
+
+
+class _KernelStamp:
+    """A cache locator's mixin: the source stamp is :func:`kernel_stamp`."""
+
+    def get_source_stamp(self) -> bytes:
+        return kernel_stamp()
+
+
+class _KernelCacheImpl(CompileResultCacheImpl):
+    _locator_classes = [type(f"Kernel{c.__name__}", (_KernelStamp, c), {})
+                        for c in CompileResultCacheImpl._locator_classes]
+
+
+class _KernelCache(FunctionCache):
+    """Numba's on-disk cache of a function (same places, ``NUMBA_CACHE_DIR`` rules), stamped by
+    :func:`kernel_stamp`."""
+
+    _impl_class = _KernelCacheImpl
+
+
+def compiled(parallel: bool = False) -> Callable[[Callable[..., Any]], Any]:
+    """``njit`` for the kernels (``nogil``, NumPy's error model, no ``fastmath``; ``parallel``
+    for a ``prange`` loop), cached on disk with :class:`_KernelCache`. With
+    ``NUMBA_DISABLE_JIT=1`` the plain function is returned."""
+
+    def wrap(fn: Callable[..., Any]) -> Any:
+        dispatcher = njit(nogil=True, error_model="numpy", parallel=parallel)(fn)
+        if not config.DISABLE_JIT:
+            dispatcher._cache = _KernelCache(dispatcher.py_func)
+        return dispatcher
+
+    return wrap
 
 
 def subroutine(fn: Callable[..., None]) -> Any:
@@ -57,10 +126,12 @@ def entry_call(dispatcher: Any) -> Any:
     module and optimises it again there; for the two large kernel entries that tripled the
     one-time compile of the callers. Through its address, the callee is compiled (and cached)
     once, on its own, and every caller is compiled without it; the call itself costs what a
-    direct call does (measured: see ``benchmarks/README.md``). The callee is compiled for the
-    call's argument types (literals made plain) when the caller is; the caller keeps its
-    fingerprint and, at run time, raises ``RuntimeError`` if ``entries`` has no code for it (a
-    parallel loop does not pass an exception on reliably: probe once before it). The address is
+    direct call does (measured: see ``benchmarks/README.md``). The caller is compiled without
+    the callee (so the two may compile at once, in two processes): it keeps the fingerprint of
+    the call's argument types (literals made plain) and, at run time, raises ``RuntimeError``
+    if ``entries`` has no code for them (a parallel loop does not pass an exception on reliably:
+    probe once before it); whoever runs the caller has compiled or loaded the callee for those
+    types (:func:`staghunt.engine.compilation.prepare`). The address is
     an argument, never a constant, so a cached caller stays valid in a new process. With
     ``NUMBA_DISABLE_JIT=1`` the plain function is called."""
     if config.DISABLE_JIT:
@@ -76,7 +147,6 @@ def entry_call(dispatcher: Any) -> Any:
 
     def typer(typingctx: Any, entries: Any, probe: Any, *args: Any) -> Any:  # noqa: ARG001
         argtys = tuple(types.unliteral(a) for a in args)
-        dispatcher.compile(argtys)
         fingerprint = signature_fingerprint(argtys)
         message = f"staghunt.engine: no compiled {dispatcher.__name__} for the caller's argument types"
 

@@ -1,5 +1,6 @@
-"""Stretches of a swarm run's iterations in one compiled call (:func:`kernels.iterate`): the
-thread count, the block size and the OpenMP runtime's idle policy."""
+"""Stretches of a swarm run's iterations in one compiled call (:func:`kernels.iterate` on several
+threads, :func:`kernels.iterate_serial` on one): the thread count, the block size and the OpenMP
+runtime's idle policy."""
 
 from __future__ import annotations
 
@@ -72,35 +73,38 @@ def _thread_safe_layer() -> bool:
 
 
 def iterate_chunk(it0: int, it1: int, bs: int, threads: int, key: np.uint64, state: np.ndarray,
-             run: Any, gcost: np.ndarray, history: np.ndarray, rhistory: np.ndarray, hviol: np.ndarray,
-             w: Scratch) -> None:
-    """One call of :func:`kernels.iterate` on ``threads`` threads (serialised across Python
-    threads unless the threading layer is thread-safe; one thread: its serial loop)."""
+                  run: Any, gcost: np.ndarray, history: np.ndarray, rhistory: np.ndarray, hviol: np.ndarray,
+                  w: Scratch) -> None:
+    """One call of the compiled loop: :func:`kernels.iterate` on ``threads`` threads (serialised
+    across Python threads unless the threading layer is thread-safe), or
+    :func:`kernels.iterate_serial` on one. The caller has loaded the kernel it asks for
+    (:func:`staghunt.engine.compilation.parallel_ready` for several threads)."""
     import numba
 
     parallel = threads > 1
-    safe = not parallel or _thread_safe_layer()
-    if parallel:
-        numba.set_num_threads(threads)
-        numba.set_parallel_chunksize(1)  # blocks handed out one at a time: a slow thread takes fewer
+    if not parallel:
+        kn.iterate_serial(it0, it1, bs, *_bound(run, w, key, state, gcost, history, rhistory, hviol))
+        return
+    safe = _thread_safe_layer()
+    numba.set_num_threads(threads)
+    numba.set_parallel_chunksize(1)  # blocks handed out one at a time: a slow thread takes fewer
     if not safe:
         _LAYER_LOCK.acquire()
     try:
-        kn.iterate(it0, it1, bs, not parallel, *_bound(run, w, key, state, gcost, history, rhistory, hviol))
+        kn.iterate(it0, it1, bs, *_bound(run, w, key, state, gcost, history, rhistory, hviol))
     finally:
         if not safe:
             _LAYER_LOCK.release()
-        if parallel:
-            numba.set_parallel_chunksize(0)
+        numba.set_parallel_chunksize(0)
 
 
-ITERATE_PER_CALL = ("it0", "it1", "bs", "serial")
+ITERATE_PER_CALL = ("it0", "it1", "bs")
 """The compiled loop's leading parameters given at each call; the rest are bound by name once per
 run (:func:`staghunt.engine.arrays.kernel_args`)."""
 
 
-class _RunState(NamedTuple):
-    """What :func:`kernels.iterate` takes besides the run's, model's, swarm's and scratch arrays."""
+class RunState(NamedTuple):
+    """What the compiled loop takes besides the run's, model's, swarm's and scratch arrays."""
 
     key: np.uint64
     state: np.ndarray
@@ -116,7 +120,7 @@ def _bound(run: Any, w: Scratch, key: np.uint64, state: np.ndarray, gcost: np.nd
     per run (and stack of scratch buffers)."""
     bound = getattr(run, "_iterate_bound", None)
     if bound is None or bound[0] is not w or bound[1] is not state:
-        extra = _RunState(key, state, gcost, history, rhistory, hviol)
+        extra = RunState(key, state, gcost, history, rhistory, hviol)
         bound = (w, state, kernel_args(kn.iterate, extra, run, run.ma, run.sa, w, per_call=ITERATE_PER_CALL))
         run._iterate_bound = bound
     return bound[2]

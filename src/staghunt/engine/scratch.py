@@ -45,6 +45,11 @@ class Scratch:
         self.better = z(B)
         self.bits1 = z(B, dtype=np.uint64)
         self.bits2 = z(B, dtype=np.uint64)
+        self.ubits1 = self.bits1.view(np.float64)  # the same memory, read as floats
+        self.ubits2 = self.bits2.view(np.float64)
+        self.box = z(6, N, K + 2)
+        self.near = z(S1, dtype=np.int64)
+        self.qcost = z(2, 6 * K)
 
 
 _POOL: dict[tuple[int, ...], list[Scratch]] = {}

@@ -201,10 +201,26 @@ def previous_set(out: Path) -> list[str]:
             data = json.loads(fh.read(MAX_MANIFEST_BYTES))
     except (OSError, ValueError, RecursionError):
         return []
-    names = data.get("files") if isinstance(data, dict) else None
-    if not isinstance(names, list) or data.get("format") != "staghunt-mission/1":
+    if not isinstance(data, dict) or data.get("format") != "staghunt-mission/1":
+        return []
+    names = data.get("files")
+    if names is None:  # an older export's manifest, without its list: the files such an export writes
+        return _older_set(data)
+    if not isinstance(names, list):
         return []
     return [n for n in names if isinstance(n, str)]
+
+
+def _older_set(data: dict[str, Any]) -> list[str]:
+    """The names an export of staghunt before ``mission.json`` listed its files could write, for
+    the UAVs its manifest names (``max_speed_m_s``): per UAV ``uav<n>.plan``, ``.waypoints``,
+    ``.kmz``, ``.litchi.csv``; for the team ``mission.kml``, ``mission.geojson``,
+    ``trajectories.csv``, the figures, ``MISSION_UNSAFE.txt`` and ``mission.json``."""
+    speeds = data.get("max_speed_m_s")
+    count = len(speeds) if isinstance(speeds, dict) else 0
+    team = ["mission.json", "MISSION_UNSAFE.txt", "mission.kml", "mission.geojson", "trajectories.csv",
+            "speed.png", "separation.png"]
+    return team + [f"uav{n}{ext}" for n in range(1, count + 1) for ext in (".plan", ".waypoints", ".kmz", ".litchi.csv")]
 
 
 MAX_MANIFEST_BYTES = 16 * 2**20

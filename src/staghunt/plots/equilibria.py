@@ -7,6 +7,7 @@ Used by ``staghunt plan`` (the starts of one run: ``equilibria.png``) and by
 
 from __future__ import annotations
 
+import textwrap
 from dataclasses import dataclass
 from typing import Sequence
 
@@ -46,13 +47,20 @@ def draw_equilibria(ax: Axes, panel: EquilibriaPanel) -> None:
         ax.plot(x, np.log(row), "--", marker="D", ms=5, lw=1.2, color=_SELECTED, alpha=0.8, zorder=3)
     ax.set_xticks(x, panel.names)
     ax.set_ylabel("ln J_n", fontsize=_LABEL)
-    ax.set_title(f"{panel.title}: {len(J)} distinct equilibria, {int((~dominated).sum())} undominated",
-                 fontsize=_TITLE)
+    counts = f"{len(J)} distinct equilibria, {int((~dominated).sum())} undominated"
+    ax.set_title(_wrapped(f"{panel.title}: {counts}", ax), fontsize=_TITLE)
     ax.plot([], [], "-o", color=_DOMINATED, label="dominated")
     ax.plot([], [], "-o", color=_FRONT, label="undominated")
     ax.plot([], [], "--D", color=_SELECTED, label="selected")
     ax.legend(fontsize=_LEGEND, loc="best")
     ax.grid(alpha=0.3)
+
+
+def _wrapped(text: str, ax: Axes) -> str:
+    """``text`` broken into lines that fit the width of ``ax``'s panel (a title wider than its
+    figure is cut at both ends): about 0.6 em a character."""
+    width_pt = ax.figure.get_figwidth() * 72.0 * ax.get_position().width
+    return "\n".join(textwrap.wrap(text, width=max(20, int(width_pt / (0.6 * _TITLE)))))
 
 
 def equilibria_figure(panels: Sequence[EquilibriaPanel]) -> Figure:

@@ -4,8 +4,10 @@ the site box. Failures raise :class:`ScenarioError` naming the ``ground`` key at
 from __future__ import annotations
 
 import errno
+import functools
 import hashlib
 import math
+import os
 from pathlib import Path
 
 import numpy as np
@@ -39,15 +41,28 @@ def resolve_file(path: Path, key: str, what: str) -> Path:
 
 
 def file_digest(path: Path, key: str) -> str:
-    """SHA-256 of a file's bytes (read in blocks)."""
-    h = hashlib.sha256()
+    """SHA-256 of a file's bytes (read in blocks), computed once per process for a file of a
+    given size, modification time and inode (a GeoTIFF of a site can take seconds to hash)."""
     try:
-        with open(path, "rb") as fh:
-            for block in iter(lambda: fh.read(1 << 20), b""):
-                h.update(block)
+        st = os.stat(path)
+        return _file_digest(str(path), st.st_size, st.st_mtime_ns, st.st_ino)
     except OSError as exc:
         raise ScenarioError(f"cannot read {str(path)!r}: {exc.strerror or exc}", key) from None
+
+
+@functools.lru_cache(maxsize=16)
+def _file_digest(path: str, size: int, mtime_ns: int, inode: int) -> str:  # noqa: ARG001 (the cache key)
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
     return h.hexdigest()
+
+
+def geotiff_digest(terrain: Terrain) -> str:
+    """SHA-256 of the GeoTIFF file a terrain was read from (:func:`read_geotiff_terrain`), made
+    when asked for (a scenario's dump, a ``ground.sha256`` check), not at every load."""
+    return file_digest(Path(terrain.source), "ground.file")
 
 
 def grid_size(b: Bounds, cell_size: float, key: str = "ground.cell_size") -> tuple[int, int]:
@@ -264,8 +279,7 @@ def read_geotiff_terrain(path: Path, origin: GeoOrigin, b: Bounds, cell_size: fl
     z.setflags(write=False)
     return Terrain(elevation=z, origin=(float(b.xmin), float(b.ymin)), cell_size=float(cell_size),
                    sampling=sampling,  # type: ignore[arg-type]
-                   source=str(path), georef={"kind": "geotiff", "nodata_fill": nodata_fill,
-                                             "sha256": file_digest(path, key)})
+                   source=str(path), georef={"kind": "geotiff", "nodata_fill": nodata_fill})
 
 
 def _crs_units_per_metre(X: np.ndarray, Y: np.ndarray, gx: np.ndarray, gy: np.ndarray) -> float:

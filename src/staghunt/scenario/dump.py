@@ -10,7 +10,7 @@ from typing import Any
 import numpy as np
 
 from staghunt.camera import Camera, camera_table
-from staghunt.scenario.dem import grid_digest
+from staghunt.scenario.dem import geotiff_digest, grid_digest
 from staghunt.scenario.model import Scenario
 from staghunt.task import VehicleLimits
 
@@ -42,7 +42,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
             "cell_size": float(terrain.cell_size),
             "sampling": terrain.sampling,
             "nodata_fill": terrain.georef.get("nodata_fill"),
-            "sha256": terrain.georef.get("sha256"),
+            "sha256": geotiff_digest(terrain),
         }
     else:
         ground = {

@@ -27,6 +27,7 @@ import numpy as np
 
 from staghunt.scenario.dem import (
     check_dem_covers,
+    file_digest,
     grid_digest,
     read_dem_array,
     read_geotiff_terrain,
@@ -147,7 +148,7 @@ def _terrain(ground: Ground, base_dir: Path | None, bounds: Bounds, origin: GeoO
         terrain = read_geotiff_terrain(file, origin, bounds, ground.cell_size, ground.sampling,
                                        ground.nodata_fill, "ground.file")
         assert terrain.georef is not None
-        if ground.sha256 is not None and ground.sha256.lower() != terrain.georef["sha256"]:
+        if ground.sha256 is not None and ground.sha256.lower() != file_digest(file, "ground.file"):
             raise ScenarioError(
                 f"the GeoTIFF {str(file)!r} does not match this checksum (file changed?)", "ground.sha256")
         return terrain

@@ -9,26 +9,12 @@ from typing import TYPE_CHECKING, Any, Callable
 import numpy as np
 
 from staghunt.costs import Evaluator, evaluate
-from staghunt.errors import FieldError
 from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.requests import RequestError, check_seed  # noqa: F401  (re-exported)
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
 
-if TYPE_CHECKING:  # response imports this module
+if TYPE_CHECKING:  # annotations only
     from staghunt.solvers.response import Certificate
-
-
-class RequestError(FieldError):
-    """A run refused before it starts (:func:`staghunt.api.check_plan`,
-    :func:`staghunt.solvers.response.check_certify`); ``field`` names the argument at fault
-    (``method``, ``seed``, ``settings``, ``certify``, ``stop``, ``waypoints``) so that a caller
-    (the command line) can word it its own way."""
-
-
-def check_seed(seed: Any) -> int:
-    """``seed`` as an ``int``; :class:`RequestError` unless it is an integer >= 0."""
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise RequestError(f"seed must be an integer >= 0, got {seed!r}", "seed")
-    return int(seed)
 
 
 @dataclass(frozen=True, eq=False)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator, evaluate
+from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
 from staghunt.solvers.swarm import shared_pool
 
 ACCEPT_TOL = 1e-9
@@ -189,3 +189,25 @@ def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, 
             ahead = {}
     wait([*dropped, *ahead.values()])  # nothing left running on return
     return LocalPass(plan, J, gains, spent, tuple(searches))
+
+
+def formation_target(model: CostModel, plan: np.ndarray, n: int) -> np.ndarray:
+    """``(K, 3)`` ``(x, y, h)``: where UAV ``n`` would zero its own formation error (eq. 5) at
+    every waypoint with the others' paths of ``plan`` ``(N, K, 3)`` fixed: the ``mu[n]``-weighted
+    mean over its edges of the team-mate's position plus the reference offset. ``plan[n]`` if
+    ``n`` weighs no edge."""
+    incident = (model.mu[n] > 0) & ((model.heads == n) | (model.tails == n))
+    if not incident.any():
+        return plan[n].copy()
+    absolute = to_absolute(model.terrain, plan)  # (N, K, 3)
+    target = np.zeros_like(absolute[0])
+    for e in np.flatnonzero(incident):
+        w, head, tail = model.mu[n, e], model.heads[e], model.tails[e]
+        if head == n:
+            target += w * (absolute[tail] + model.ref_diff[e])
+        else:
+            target += w * (absolute[head] - model.ref_diff[e])
+    target /= model.mu[n, incident].sum()
+    out = target.copy()
+    out[:, 2] = target[:, 2] - model.terrain.height(target[:, 0], target[:, 1])
+    return np.clip(out, model.lower, model.upper)

@@ -62,7 +62,7 @@ from staghunt.costs import CostModel, Evaluator, evaluate
 from staghunt.encoding import ANGLE_RANGE, decode, encode
 from staghunt.inputs import check_waypoints
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
-from staghunt.solvers.base import RequestError, check_seed
+from staghunt.solvers.requests import RequestError, check_seed
 from staghunt.solvers.local import LocalSearch, polish
 from staghunt.solvers.problem import solo_problem
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm, shared_pool

@@ -22,6 +22,7 @@ it found, so the verdict reads "payoff-dominant among the equilibria found".
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -106,3 +107,22 @@ def select(candidates: list[Candidate], epsilon: float) -> Selection:
     payoff = all(bool(dominates(J[top], zero, J[o], zero)) for o in reps[1:])
     return Selection(top, tuple(reps), dominated, tuple(same_as), payoff,
                      RULE_PAYOFF_DOMINANT if payoff else RULE_FRONT)
+
+
+def summary(c: Candidate) -> dict[str, Any]:
+    """A candidate's entry in the run's details: its start, ``J``, feasibility and certificate."""
+    cert = c.certificate
+    return {
+        "start": c.start,
+        "J": [float(x) for x in c.J],
+        "feasible": bool(c.violation == 0),
+        "evaluations": int(c.evaluations),
+        "certificate": None if cert is None else {
+            "status": cert.status,
+            "epsilon": float(cert.epsilon),
+            "max_relative_gap": float(cert.max_relative_gap),
+            "relative_gaps": [float(u.relative) for u in cert.uavs],
+            "particles": int(cert.particles),
+            "iterations": int(cert.iterations),
+        },
+    }

@@ -1,0 +1,86 @@
+"""The first `staghunt plan scenario2 --no-plots` on an empty Numba cache, timed as a user meets it.
+
+Each run gets a fresh ``NUMBA_CACHE_DIR``; the wall time is the command's, the CPU time (user +
+sys) that of every process of its tree, the compile helper included, also while it goes on
+after the plan has ended (it compiles what the run could start without). Several source trees
+(``src/`` directories, e.g. this checkout and a ``git worktree`` of an older commit) are run in
+turn, A B A B ..., so that a comparison holds while the shared machine's load drifts; the load
+average is recorded before and after each run. One JSON object a line on stdout:
+
+    python benchmarks/first_run.py --runs 3 src /path/to/old/src > results/first_run.jsonl
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import psutil
+
+
+def cold_run(src: str) -> dict:
+    """One first run of the code in ``src`` on an empty cache."""
+    cache = tempfile.mkdtemp(prefix="staghunt-cold-")
+    out = tempfile.mkdtemp(prefix="staghunt-out-")
+    env = dict(os.environ, NUMBA_CACHE_DIR=cache, PYTHONPATH=os.path.abspath(src))
+    load_before = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "staghunt", "plan", "scenario2", "--no-plots", "--out", out],
+                            env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    cpu: dict[int, float] = {}
+    tree: set[int] = set()
+
+    def sample(procs: list[psutil.Process]) -> None:
+        for q in procs:
+            try:
+                c = q.cpu_times()
+                cpu[q.pid] = c.user + c.system + c.children_user + c.children_system
+            except psutil.Error:
+                pass
+
+    root = psutil.Process(proc.pid)
+    while proc.poll() is None:
+        try:
+            kids = root.children(recursive=True)
+        except psutil.Error:
+            kids = []
+        tree |= {k.pid for k in kids}
+        sample([root, *kids])
+        time.sleep(0.1)
+    wall = time.perf_counter() - t0
+    stderr = proc.stderr.read().decode() if proc.stderr else ""
+    t1 = time.perf_counter()
+    helpers = [psutil.Process(p) for p in tree if psutil.pid_exists(p)]
+    while helpers:  # the helper may go on compiling after the plan
+        sample(helpers)
+        helpers = [q for q in helpers if q.is_running() and q.status() != psutil.STATUS_ZOMBIE]
+        time.sleep(0.1)
+    result = json.load(open(os.path.join(out, "result.json")))
+    shutil.rmtree(cache, ignore_errors=True)
+    shutil.rmtree(out, ignore_errors=True)
+    return {"src": src, "wall_s": round(wall, 2), "cpu_s": round(sum(cpu.values()), 2),
+            "helper_after_plan_s": round(time.perf_counter() - t1, 2),
+            "compile_time_s": round(result["compile_time_s"], 2), "search_s": round(result["wall_time_s"], 2),
+            "certificate_s": round(result.get("certificate_time_s") or 0.0, 2),
+            "load_before": round(load_before, 2), "load_after": round(os.getloadavg()[0], 2),
+            "message": stderr.splitlines()[0] if stderr else "", "date": time.strftime("%Y-%m-%d %H:%M:%S %Z")}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("sources", nargs="+", help="src/ directories to compare, run in turn")
+    parser.add_argument("--runs", type=int, default=3, help="runs of each (default 3)")
+    args = parser.parse_args()
+    for _ in range(args.runs):
+        for src in args.sources:
+            print(json.dumps(cold_run(src)), flush=True)
+
+
+if __name__ == "__main__":
+    main()

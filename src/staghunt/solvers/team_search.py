@@ -1,0 +1,151 @@
+"""The team's local searches of ``game``: Pareto-improving moves of the whole team (no UAV worse off,
+one better, eq. (9a)), in the site frame (:func:`team_polish`) and along the team's route
+(:func:`team_slide`), each in one compiled call on the compiled engine (its Python loop is the
+reference). Used by :mod:`staghunt.solvers.game` on each start and on the selected plan."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from staghunt.costs import CostModel, Evaluator, evaluate
+from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP
+
+SLIDE_FRACTIONS = (0.4, 0.2, 0.1, 0.05, 0.025, 0.0125)
+"""The shares of the way to a neighbouring waypoint that :func:`team_slide` tries, in turn."""
+
+
+def _team_search_start(model: CostModel, plan: np.ndarray, evaluator: Evaluator, max_evaluations: int,
+                       sweep: int) -> tuple[np.ndarray | None, int]:
+    """Where a team search (:func:`team_polish`, :func:`team_slide`) starts: ``(J, N)``, the
+    ``(N,)`` costs of the feasible ``plan`` and the evaluations spent on them; ``(None, spent)``
+    if a sweep of ``sweep`` candidates does not fit in ``max_evaluations`` (``spent`` 0) or the
+    plan is infeasible (``spent`` N)."""
+    N = plan.shape[0]
+    if max_evaluations < N * (sweep + 1):
+        return None, 0
+    current = evaluator(model, plan[None])
+    if current.total_violation[0] != 0:
+        return None, N
+    return current.total[0], N
+
+
+def _dominating(c: Any, J: np.ndarray) -> np.ndarray:
+    """``(Q,)`` whether each evaluated candidate of ``c`` (:func:`staghunt.costs.evaluate`'s
+    result for ``Q`` plans) is feasible and Pareto-dominates costs ``J`` ``(N,)`` (eq. (9a)),
+    better somewhere by more than :data:`ACCEPT_TOL` (relative)."""
+    return ((c.total_violation == 0) & np.all(c.total <= J, axis=1)
+            & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
+
+
+def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
+                step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP,
+                compiled: bool = True) -> tuple[np.ndarray, int]:
+    """Pareto-improving pattern search that moves the whole team: each sweep evaluates the
+    ``6 K`` plans with one coordinate of one waypoint moved by ``+-step`` for *every* UAV (the
+    formation's shape is kept) and takes, among the feasible ones that Pareto-dominate the plan
+    (no UAV worse, one better, eq. (9a)), the one with the least summed cost (summed in UAV
+    order; the first on a tie); else ``step`` halves, down to ``min_step`` metres. A swarm in the
+    spherical encoding leaves a formation route metres from its local optimum; this finishes
+    the descent without making any UAV worse off. Returns the ``(N, K, 3)`` plan (``plan``
+    itself if nothing improved) and the path evaluations spent (``N`` per candidate,
+    ``<= max_evaluations``). On the compiled engine (``compiled``) the whole search is one
+    compiled call making the same decisions on the same costs
+    (:func:`~staghunt.engine.deviations.team_search`); this loop is its reference."""
+    N, K = plan.shape[0], plan.shape[1]
+    moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, 1, K, 3)
+    J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 6 * K)
+    if J is None:
+        return plan, spent
+    found = _compiled(model, plan, evaluator, J, max_evaluations, spent, step=step, min_step=min_step) if compiled else None
+    if found is not None:
+        return found
+    best = plan
+    while step >= min_step and spent + N * 6 * K <= max_evaluations:
+        cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
+        c = evaluator(model, cands)
+        spent += N * 6 * K
+        better = _dominating(c, J)
+        if not better.any():
+            step /= 2
+            continue
+        i = np.flatnonzero(better)[np.argmin(_in_order(c.total[better], np.add))]
+        best, J = cands[i], c.total[i]
+    return best, spent
+
+
+def _compiled(model: CostModel, plan: np.ndarray, evaluator: Evaluator, *search: Any,
+              **options: Any) -> tuple[np.ndarray, int] | None:
+    """The plan (``plan`` itself if nothing improved, as the Python loops return it) and
+    evaluations of the compiled team search of ``plan`` if ``evaluator`` is a compiled engine's
+    and its kernel is ready (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`),
+    else ``None``."""
+    engine = getattr(evaluator, "__self__", None)
+    found = engine.team_search(model, plan, *search, **options) if hasattr(engine, "team_search") else None
+    if found is None:
+        return None
+    return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
+
+
+def _in_order(total: np.ndarray, op: np.ufunc) -> np.ndarray:
+    """``(Q,)`` ``op`` (``np.add``, ``np.multiply``) of the columns of ``total`` ``(Q, N)`` taken
+    in UAV order, ``((t_0 op t_1) op t_2) ...``: the arithmetic of the compiled twin."""
+    out = total[:, 0].copy()
+    for n in range(1, total.shape[1]):
+        out = op(out, total[:, n])
+    return out
+
+
+def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
+               fractions: tuple[float, ...] = SLIDE_FRACTIONS, compiled: bool = True) -> tuple[np.ndarray, int]:
+    """Pareto-improving search over *when* the team passes where: each sweep evaluates the
+    ``2 K`` plans with waypoint ``k`` of *every* UAV moved the same ``fraction`` of the way
+    towards its waypoint ``k - 1`` or ``k + 1`` (the start or the goal at the ends), and takes,
+    among the feasible ones that Pareto-dominate the plan (no UAV worse, one better, eq. (9a)),
+    the one with the least ``sum_n ln J_n`` (the least product of ``J_n`` over the plan's
+    ``J_n``, multiplied in UAV order: the same order without logarithms, whose last bit differs
+    between libraries; the first on a tie); else the next, smaller fraction. The waypoints are
+    synchronised, so sliding them along the team's route changes the formation error at each
+    waypoint and the separations, for all UAVs at once: the equilibria selected on different
+    seeds of scenario 2 differed mostly in this (the same route, its waypoints spaced
+    differently), which neither a one-coordinate move (:func:`team_polish`) nor a UAV alone
+    can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
+    path evaluations spent (``N`` per candidate, ``<= max_evaluations``). On the compiled engine
+    (``compiled``) the whole search is one compiled call making the same decisions
+    (:func:`~staghunt.engine.deviations.team_search`); this loop is its reference."""
+    N, K = plan.shape[0], plan.shape[1]
+    J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 2 * K)
+    if J is None:
+        return plan, spent
+    found = _compiled(model, plan, evaluator, J, max_evaluations, spent, fractions=tuple(fractions)) if compiled else None
+    if found is not None:
+        return found
+    best = plan
+    starts, goals = np.asarray(model.starts)[:, None], np.asarray(model.goals)[:, None]  # (N, 1, 3)
+    rows = np.arange(K)
+    for fraction in fractions:
+        while spent + N * 2 * K <= max_evaluations:
+            full = np.concatenate([starts, best, goals], axis=1)  # (N, K + 2, 3)
+            cands = np.repeat(best[None], 2 * K, axis=0)  # (2K, N, K, 3): towards k - 1, then k + 1
+            cands[rows, :, rows] += fraction * (full[:, :K] - best).transpose(1, 0, 2)
+            cands[K + rows, :, rows] += fraction * (full[:, 2:] - best).transpose(1, 0, 2)
+            cands = np.clip(cands, model.lower, model.upper)
+            c = evaluator(model, cands)
+            spent += N * 2 * K
+            better = _dominating(c, J)
+            if not better.any():
+                break
+            i = np.flatnonzero(better)[np.argmin(_in_order(c.total[better] / J, np.multiply))]
+            best, J = cands[i], c.total[i]
+    return best, spent
+
+
+def team_refine(model: CostModel, plan: np.ndarray, each: int, left: int,
+                evaluator: Evaluator = evaluate) -> tuple[np.ndarray, int]:
+    """:func:`team_slide`, then :func:`team_polish`, each with at most ``each`` path evaluations
+    and both together at most ``left``. Returns the ``(N, K, 3)`` plan (``plan`` itself if
+    nothing improved) and the evaluations spent."""
+    slid, spent = team_slide(model, plan, min(each, left), evaluator)
+    polished, used = team_polish(model, slid, min(each, left - spent), evaluator)
+    return polished, spent + used
