@@ -91,6 +91,21 @@ def flight_row(f) -> dict:
                           "tasks": d.tasks_left} for d in f.decisions]}
 
 
+def way_out(plan) -> dict:
+    """The team's way out (the game, to the first captures, arriving together) against the
+    farthest UAV's straight line at the cruise speed, and the makespan before and after the work
+    is allocated again from the way out's end (``None``: kept the first)."""
+    import re
+
+    outs = [(p.t1, p.points[0], p.points[-1]) for pieces in plan.timeline.pieces for p in pieces if p.label == "outbound"]
+    if not outs:
+        return {"way_out_s": None, "way_out_straight_s": None, "first_makespan_s": None}
+    straight = max(float(np.linalg.norm(b - a)) for _, a, b in outs) / plan.scenario.vehicle.cruise_speed
+    again = re.search(r"makespan (\d+) s -> (\d+) s", plan.message)
+    return {"way_out_s": max(t for t, _, _ in outs), "way_out_straight_s": straight,
+            "first_makespan_s": float(again.group(1)) if again else None}
+
+
 def same_model(plan) -> float:
     """The allocation's routes timed as the bound times them (straight legs at the cruise speed,
     no stop, no slack), over the bound: the allocation's own share of the gap."""
@@ -188,7 +203,7 @@ def main() -> int:
                                               and plan.outbound.certificate.is_equilibrium),
                    "outbound_max_relative_gap": (None if plan.outbound is None or plan.outbound.certificate is None
                                                  else plan.outbound.certificate.max_relative_gap),
-                   "safe_in_time": plan.safety.safe,
+                   "safe_in_time": plan.safety.safe, **way_out(plan),
                    "photos_vs_qgc": {o.name: {"photos": o.photos, "qgc": o.qgc_photos, "ratio": o.photos / o.qgc_photos}
                                      for o in plan.captures.objectives if o.qgc_photos},
                    "photos_vs_qgc_flat_ground": flat_ratio(scenario),
@@ -288,6 +303,11 @@ def table(report: dict) -> str:
          "the timed plan",
          lambda t: runs(t, lambda r: f"{r['allocation_over_bound_same_model']:.2f}; {r['allocation_over_bound']:.2f}; "
                                      f"{r['planned_over_bound']:.2f}")),
+        ("the team's way out (the game, arriving together) / the farthest straight at cruise speed (s); makespan "
+         "with the first allocation -> the work allocated again from the way out's end (s)",
+         lambda t: runs(t, lambda r: f"{r['way_out_s']:.0f} / {r['way_out_straight_s']:.0f}; "
+                                     f"{r['first_makespan_s'] or r['planned_makespan_s']:.0f} -> "
+                                     f"{r['planned_makespan_s']:.0f}" if r["way_out_s"] else "-")),
         ("makespan: OR-Tools / greedy / lower bound (s)",
          lambda t: runs(t, lambda r: f"{r['allocation_makespan_s']:.0f} / {r['greedy_makespan_s']:.0f} / "
                                      f"{r['lower_bound_s']:.0f}")),

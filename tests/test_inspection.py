@@ -250,6 +250,33 @@ def test_the_plan_is_reproducible(scenario2, planned):
     assert np.array_equal(again.timeline.positions(np.arange(0, 40.0, 0.5)), plan.timeline.positions(np.arange(0, 40.0, 0.5)))
 
 
+@pytest.fixture(scope="module")
+def site3():
+    """The built-in 3-UAV inspection at small game budgets (its outbound game is feasible)."""
+    scenario = load_scenario("site_inspection3")
+    return plan_inspection(scenario, scenario.inspection, FAST, seed=3)
+
+
+def test_every_uav_flies_on_without_a_jump_and_the_work_is_allocated_from_the_outbound_end(planned, site3):
+    import re
+
+    for plan in (planned[0], site3):
+        for pieces in plan.timeline.pieces:
+            for a, b in zip(pieces[:-1], pieces[1:]):
+                assert b.t0 == pytest.approx(a.t1, abs=1e-9)
+                end_a = a.state(np.array([a.t1]))[0, 0] if a.spline is not None else a.hold
+                start_b = b.state(np.array([b.t0]))[0, 0] if b.spline is not None else b.hold
+                assert np.allclose(end_a, start_b, atol=1e-6)
+    # the work allocated again from where and when the team's game leaves each UAV, kept because
+    # it ends earlier than the first allocation's timeline
+    assert site3.status.value == "planned" and site3.safety.safe
+    before, after = (float(x) for x in re.search(r"makespan (\d+) s -> (\d+) s", site3.message).groups())
+    assert after < before and site3.makespan == pytest.approx(after, abs=0.5)
+    t_out = max(p.t1 for pieces in site3.timeline.pieces for p in pieces if p.label == "outbound")
+    assert min(r.visits[0].start for r in site3.allocation.routes if r.visits) >= t_out - 1e-6
+    assert site3.allocation.lower_bound <= site3.makespan
+
+
 def test_the_timeline_state_is_its_splines_and_their_derivatives(planned):
     plan, _ = planned
     checked = 0

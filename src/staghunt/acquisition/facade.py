@@ -65,7 +65,7 @@ def _loop(poly: Polygon, standoff: float, reach: float, trim: float = 0.0) -> li
     edges = [(xy[k], xy[(k + 1) % V]) for k in range(V)]
     unit = [(b - a) / max(float(np.hypot(*(b - a))), 1e-12) for a, b in edges]
     # a clockwise turn at vertex k (between edge k-1 and edge k) is an inner corner
-    reflex = [float(np.cross(unit[k - 1], unit[k])) < -1e-9 for k in range(V)]
+    reflex = [float(unit[k - 1][0] * unit[k][1] - unit[k - 1][1] * unit[k][0]) < -1e-9 for k in range(V)]
     runs = []
     for k, (a, b) in enumerate(edges):
         e = unit[k]

@@ -8,7 +8,9 @@
    each UAV is on its own clock: between captures and home when its work is done it flies alone
    (a straight hop, the shortest way round or over an obstacle, or the game with it as the only
    player). Coming home together would keep the early ones hovering at their last capture in the
-   others' way, spending endurance for nothing: they come home as they finish.
+   others' way, spending endurance for nothing: they come home as they finish. The game's way out
+   is longer than the straight lines the allocation assumed: the work is allocated again from
+   where and when it leaves each UAV, and that timeline kept when it ends earlier.
 4. Every UAV's flight timed (:mod:`.timeline`) and the whole team checked in time: separation at
    the same instant, clearance, ground, ceiling. A conflict between two UAVs at work is resolved
    by making the later one wait.
@@ -194,6 +196,11 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
     t = time.perf_counter()
     fly = Flight(scenario, inspection, config, seed, tasks)
     timeline, outbound, solo, problems = fly.build(alloc)
+    if outbound is not None and outbound.feasible and not problems:
+        better = _after_outbound(fly, problem, alloc, timeline)
+        if better is not None:
+            alloc, timeline, fly = better
+            solo, problems = fly.solo, fly.problems
     times["legs_s"] = time.perf_counter() - t
     t = time.perf_counter()
     safety = check_timeline(scenario, timeline)
@@ -212,6 +219,31 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
     elif not safety.safe:
         status, message = InspectionStatus.UNSAFE, "unsafe: " + "; ".join(safety.problems[:3])
     return replace(plan, status=status, message=message, coverage=coverage, times=times)
+
+
+def _after_outbound(fly: Flight, problem: Problem, alloc: Allocation, timeline: Timeline
+                    ) -> tuple[Allocation, Timeline, Flight] | None:
+    """The work allocated again from where and when the team's outbound leg leaves each UAV: the
+    first allocation times each UAV's way out alone and straight, while the game brings the team
+    to its first captures together, later (its longest path sets the pace). The new allocation,
+    its timeline and its builder when they end earlier and without a problem, else ``None``."""
+    fleet, config = problem.fleet, fly.config
+    head = [[p for p in pieces if p.label == "outbound"] for pieces in timeline.pieces]
+    t_out = max((h[-1].t1 for h in head if h), default=0.0)
+    starts = np.array([h[-1].state(np.array([h[-1].t1]))[0, 0] if h else fleet.starts[k] for k, h in enumerate(head)])
+    ready = np.full(fleet.n, t_out)
+    after = replace(fleet, starts=starts, ready=ready, endurance=fleet.endurance - ready)
+    again = solve(Problem(problem.tasks, after, stop_s=problem.stop_s, slack=problem.slack), config.allocation,
+                  config.solutions, config.rounds, config.time_cap_s)
+    if not again.ok:
+        return None
+    fly2 = Flight(fly.scenario, fly.inspection, config, fly.seed, fly.tasks)
+    built, _, _, problems = fly2.build(again, fleet=after, head=head, after=t_out)
+    if problems or built.end >= timeline.end - 1e-6:
+        return None
+    fly2.notes = fly.notes + [f"work allocated again from the end of the outbound leg ({t_out:.0f} s): makespan "
+                              f"{timeline.end:.0f} s -> {built.end:.0f} s"]
+    return replace(again, lower_bound=alloc.lower_bound), built, fly2
 
 
 def check_timeline(scenario: Scenario, timeline: Timeline, step: float = 0.1) -> SafetyReport:
