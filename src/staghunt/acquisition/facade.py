@@ -28,7 +28,7 @@ from shapely.geometry import Polygon
 
 from staghunt.acquisition.clearance import Keepout
 from staghunt.acquisition.segments import CaptureSegment, ObjectivePlan, arc_length
-from staghunt.acquisition.survey import MARGIN, _runs
+from staghunt.acquisition.survey import BLUR_MARGIN, MARGIN, _runs
 from staghunt.camera import Camera
 from staghunt.task.objectives import FacadeObjective, Payload
 
@@ -94,7 +94,7 @@ def plan_facade(obj: FacadeObjective, camera: Camera, payload: Payload, keep: Ke
     vertical = side_fp if not camera.landscape else front_fp
     trigger = MARGIN * horizontal * (1.0 - obj.front_overlap)
     spacing = MARGIN * vertical * (1.0 - obj.side_overlap)
-    speed = min(cruise_speed, camera.speed_for_blur(gsd, max_blur_px),
+    speed = min(cruise_speed, BLUR_MARGIN * camera.speed_for_blur(gsd, max_blur_px),
                 0.9 * trigger / camera.min_trigger_interval_s if camera.min_trigger_interval_s > 0 else math.inf)
     terrain = scenario.world.terrain
     wall = np.asarray(poly.exterior.coords)

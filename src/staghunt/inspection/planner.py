@@ -197,9 +197,11 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
     fly = Flight(scenario, inspection, config, seed, tasks)
     timeline, outbound, solo, problems = fly.build(alloc)
     if outbound is not None and outbound.feasible and not problems:
-        better = _after_outbound(fly, problem, alloc, timeline)
-        if better is not None:
-            alloc, timeline, fly = better
+        again = from_way_out(fly, problem, alloc, timeline)
+        if again is not None and not again[2].problems and again[1].end < timeline.end - 1e-6:
+            again[2].notes = fly.notes + [f"work allocated again from the end of the outbound leg: makespan "
+                                          f"{timeline.end:.0f} s -> {again[1].end:.0f} s"]
+            alloc, timeline, fly = again
             solo, problems = fly.solo, fly.problems
     times["legs_s"] = time.perf_counter() - t
     t = time.perf_counter()
@@ -221,12 +223,13 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
     return replace(plan, status=status, message=message, coverage=coverage, times=times)
 
 
-def _after_outbound(fly: Flight, problem: Problem, alloc: Allocation, timeline: Timeline
-                    ) -> tuple[Allocation, Timeline, Flight] | None:
-    """The work allocated again from where and when the team's outbound leg leaves each UAV: the
-    first allocation times each UAV's way out alone and straight, while the game brings the team
-    to its first captures together, later (its longest path sets the pace). The new allocation,
-    its timeline and its builder when they end earlier and without a problem, else ``None``."""
+def from_way_out(fly: Flight, problem: Problem, alloc: Allocation, timeline: Timeline
+                 ) -> tuple[Allocation, Timeline, Flight] | None:
+    """The work allocated again from where and when the team's outbound leg (in ``timeline``)
+    leaves each UAV: the first allocation times each UAV's way out alone and straight, while the
+    game brings the team to its first captures together, later (its longest path sets the pace).
+    The new allocation (with ``alloc``'s lower bound), its timeline and its builder (whose
+    ``problems`` say what failed); ``None`` when no allocation fits from there."""
     fleet, config = problem.fleet, fly.config
     head = [[p for p in pieces if p.label == "outbound"] for pieces in timeline.pieces]
     t_out = max((h[-1].t1 for h in head if h), default=0.0)
@@ -238,11 +241,7 @@ def _after_outbound(fly: Flight, problem: Problem, alloc: Allocation, timeline: 
     if not again.ok:
         return None
     fly2 = Flight(fly.scenario, fly.inspection, config, fly.seed, fly.tasks)
-    built, _, _, problems = fly2.build(again, fleet=after, head=head, after=t_out)
-    if problems or built.end >= timeline.end - 1e-6:
-        return None
-    fly2.notes = fly.notes + [f"work allocated again from the end of the outbound leg ({t_out:.0f} s): makespan "
-                              f"{timeline.end:.0f} s -> {built.end:.0f} s"]
+    built, _, _, _ = fly2.build(again, fleet=after, head=head, after=t_out)
     return replace(again, lower_bound=alloc.lower_bound), built, fly2
 
 
