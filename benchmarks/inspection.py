@@ -106,14 +106,23 @@ def way_out(plan) -> dict:
             "first_makespan_s": float(again.group(1)) if again else None}
 
 
-def same_model(plan) -> float:
-    """The allocation's routes timed as the bound times them (straight legs at the cruise speed,
-    no stop, no slack), over the bound: the allocation's own share of the gap."""
+def first_allocation(plan) -> dict:
+    """The allocation from take-off (as the planner makes it first, before the work is allocated
+    again from the game's way out) beside the greedy baseline and the bound, and its routes timed
+    as the bound times them (straight legs at the cruise speed, no stop, no slack): the
+    allocation's own share of the gap."""
     from staghunt.inspection.allocation import time_routes
 
-    pb = Problem(plan.tasks, fleet_of(plan.scenario, plan.inspection), stop_s=0.0, slack=1.0)
-    routes, _ = time_routes(pb, [plan.allocation.tasks_of(k) for k in range(pb.fleet.n)])
-    return max(r.end for r in routes) / plan.allocation.lower_bound
+    cfg = plan.config
+    fleet = fleet_of(plan.scenario, plan.inspection)
+    first = solve(Problem(plan.tasks, fleet, slack=SLACK), cfg.allocation, cfg.solutions, cfg.rounds, cfg.time_cap_s)
+    pb = Problem(plan.tasks, fleet, stop_s=0.0, slack=1.0)
+    routes, _ = time_routes(pb, [first.tasks_of(k) for k in range(fleet.n)])
+    bound = first.lower_bound
+    return {"allocation_makespan_s": first.makespan, "greedy_makespan_s": plan.baseline.makespan,
+            "lower_bound_s": bound, "allocation_over_bound": first.makespan / bound,
+            "allocation_over_bound_same_model": max(r.end for r in routes) / bound,
+            "final_allocation_makespan_s": plan.allocation.makespan}
 
 
 def flat_ratio(scenario) -> dict:
@@ -194,10 +203,7 @@ def main() -> int:
             plan = plan_inspection(scenario, scenario.inspection, InspectConfig(), seed=seed)
             run = {"seed": seed, "planning_wall_s": time.perf_counter() - w0, "planning_cpu_s": cpu() - c0,
                    "parts_s": plan.times, "status": plan.status.value, "message": plan.message,
-                   "allocation_makespan_s": plan.allocation.makespan, "greedy_makespan_s": plan.baseline.makespan,
-                   "lower_bound_s": plan.allocation.lower_bound, "planned_makespan_s": plan.makespan,
-                   "allocation_over_bound": plan.allocation.makespan / plan.allocation.lower_bound,
-                   "allocation_over_bound_same_model": same_model(plan),
+                   **first_allocation(plan), "planned_makespan_s": plan.makespan,
                    "planned_over_bound": plan.makespan / plan.allocation.lower_bound,
                    "outbound_certified": bool(plan.outbound is not None and plan.outbound.certificate is not None
                                               and plan.outbound.certificate.is_equilibrium),
@@ -299,8 +305,8 @@ def table(report: dict) -> str:
          lambda t: runs(t, lambda r: f"{r['flight_wind_0']['least_trigger_interval_s']:.2f} s")),
         ("motion blur at the flown speed, 1/1000 s (<= 0.5 px; max)",
          lambda t: runs(t, lambda r: f"{blur(r):.2f} px")),
-        ("makespan / lower bound (<= 1.15): the allocation timed as the bound is; as planned (slack 1.25, stops); "
-         "the timed plan",
+        ("makespan / lower bound (<= 1.15): the allocation from take-off timed as the bound is; the same as "
+         "allocated (slack 1.25, stops); the timed plan",
          lambda t: runs(t, lambda r: f"{r['allocation_over_bound_same_model']:.2f}; {r['allocation_over_bound']:.2f}; "
                                      f"{r['planned_over_bound']:.2f}")),
         ("the team's way out (the game, arriving together) / the farthest straight at cruise speed (s); makespan "
@@ -308,7 +314,7 @@ def table(report: dict) -> str:
          lambda t: runs(t, lambda r: f"{r['way_out_s']:.0f} / {r['way_out_straight_s']:.0f}; "
                                      f"{r['first_makespan_s'] or r['planned_makespan_s']:.0f} -> "
                                      f"{r['planned_makespan_s']:.0f}" if r["way_out_s"] else "-")),
-        ("makespan: OR-Tools / greedy / lower bound (s)",
+        ("makespan from take-off: OR-Tools / greedy / lower bound (s)",
          lambda t: runs(t, lambda r: f"{r['allocation_makespan_s']:.0f} / {r['greedy_makespan_s']:.0f} / "
                                      f"{r['lower_bound_s']:.0f}")),
         ("small instances: ours / OR-Tools with a long limit (<= 1.05; worst)",
