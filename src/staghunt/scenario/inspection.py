@@ -7,7 +7,6 @@ Failures raise :class:`ScenarioError` naming the key (``objectives[1].gsd_cm``).
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -77,16 +76,11 @@ def _payloads(f: Any, n: int) -> tuple[Payload, ...] | None:
 def _feature(path_text: str, feature: str | None, base_dir: Path | None, kind: str, key: str) -> list:
     """The coordinates of a GeoJSON feature of geometry ``kind`` (``"Polygon"`` or ``"Point"``)."""
     from staghunt.scenario.dem import resolve_file
+    from staghunt.scenario.shapes import feature_list
 
     path = resolve_file((base_dir or Path(".")) / path_text, key, "GeoJSON file")
-    if not path.is_file():
-        raise ScenarioError(f"no such GeoJSON file {str(path)!r}", key)
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
-        raise ScenarioError(f"cannot read GeoJSON {str(path)!r}: {exc}", key) from None
-    feats = doc.get("features") if isinstance(doc, dict) else None
-    if not isinstance(feats, list) or not feats:
+    feats = feature_list(path, key)
+    if not feats:
         raise ScenarioError(f"{str(path)!r} is not a GeoJSON FeatureCollection with features", key)
     named = [f for f in feats if isinstance(f, dict) and (f.get("properties") or {}).get("name") == feature]
     if feature is not None and not named:

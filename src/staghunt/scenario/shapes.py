@@ -144,11 +144,9 @@ def _positions(value: Any, where: str, key: str) -> np.ndarray:
     return out
 
 
-def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
-    """Every feature of a GeoJSON FeatureCollection, checked (types, coordinates, numbers) but
-    not yet placed in the site frame."""
-    from staghunt.inputs import MAX_MAGNITUDE
-
+def feature_list(path: Path, key: str) -> list:
+    """The ``features`` list of the GeoJSON FeatureCollection at ``path`` (unchecked items); a
+    missing or unreadable file, or another document, is a :class:`ScenarioError` on ``key``."""
     if not path.is_file():
         raise ScenarioError(f"no such GeoJSON file {str(path)!r}", key)
     try:
@@ -158,6 +156,15 @@ def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
     feats = doc.get("features") if isinstance(doc, dict) else None
     if not isinstance(feats, list):
         raise ScenarioError(f"{str(path)!r} is not a GeoJSON FeatureCollection", key)
+    return feats
+
+
+def _read_features(path: Path, key: str, nofly: bool) -> list[_Feature]:
+    """Every feature of a GeoJSON FeatureCollection, checked (types, coordinates, numbers) but
+    not yet placed in the site frame."""
+    from staghunt.inputs import MAX_MAGNITUDE
+
+    feats = feature_list(path, key)
     out: list[_Feature] = []
     for i, f in enumerate(feats):
         if not isinstance(f, dict):
