@@ -3,12 +3,12 @@
 
     python benchmarks/figures.py                  # rewrite every marked figure from the results
     python benchmarks/figures.py --check          # report what differs, is missing or is unmarked; exit 1
-    python benchmarks/figures.py --get bench.json 'paper_numba.times_s | min .2f'   # render one figure
+    python benchmarks/figures.py --get bench.json 'paper_numba.times_s ; min .2f'   # render one figure
     python benchmarks/figures.py --paths bench.json                                 # every value a file holds
 
 A figure in the Markdown sits between two HTML comments (invisible on GitHub):
 
-    <!-- fig bench.json paper_numba.times_s | min .2f -->2.22<!-- /fig --> s
+    <!-- fig bench.json paper_numba.times_s ; min .2f -->2.22<!-- /fig --> s
     <!-- fig bench.json @ -->2026-11-26 09:46 UTC, 2-CPU Linux x86_64, load 1.3-1.6<!-- /fig -->
 
 The first names a results file, a path into it and how to render the value; the second (``@``)
@@ -28,27 +28,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from figure_rules import ALLOW, BOUND, STRICT
+from figure_rules import ALLOW, CODE_SPAN, MARKER, allowed, bare_figures, code_lines
 
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "benchmarks" / "results"
 DOCS = ("README.md", "docs/*.md", "benchmarks/README.md")
 
-MARKER = re.compile(r"<!--\s*fig\s+([^\n]*?)\s*-->([^\n]*?)<!--\s*/fig\s*-->")
 STRAY = re.compile(r"<!--\s*/?fig\b")
 STEP = re.compile(r"\[([^\]]*)\]|\.?([^.\[\]]+)")
 REDUCERS = {"min": min, "max": max, "sum": sum, "count": len, "first": lambda v: v[0], "last": lambda v: v[-1],
             "median": statistics.median, "mean": statistics.fmean}
-NUM = r"\d[\d,]*(?:\.\d+)?"
-SPAN = rf"{NUM}(?:\s*(?:-|–|to)\s*{NUM})?"
-UNIT = re.compile(rf"(?<![\w.,]){SPAN}(?:\s?(?:ms|us|µs|ns|s|seconds?|min|minutes?|h|hours?|MB|MiB|GB|GiB|kB|KB|KiB|%|"
-                  rf"times)|x)(?![\w])")
-DECIMAL = re.compile(r"(?<![\w.])\d+\.\d+(?!\.?\d)")
-CODE_SPAN = re.compile(r"`[^`\n]*`")
-COMMENT = re.compile(r"<!--.*?-->")
-LINK_TARGET = re.compile(r"\]\([^)]*\)")
-
-
+PERCENTILE = re.compile(r"p\d{1,2}(?:\.\d+)?")
+BINARY = re.compile(r" ([/+-]) ")
+VERDICT = re.compile(r"(<=|>=|<|>)(-?\d+(?:\.\d+)?)\?([^:]*):(.*)")
 class FigureError(ValueError):
     """A figure that cannot be rendered: the file, the path or the format is wrong."""
 
@@ -109,21 +101,34 @@ def _literal(text: str) -> Any:
         return text
 
 
-def _matches(item: Any, key: str, want: str) -> bool:
-    return isinstance(item, dict) and key in item and (item[key] == _literal(want) or str(item[key]) == want)
+def _matches(item: Any, key: str, want: str | None) -> bool:
+    """``[key=want]`` (``[?key]`` when ``want`` is None: the item has ``key``)."""
+    if not isinstance(item, dict) or key not in item:
+        return False
+    return want is None or item[key] == _literal(want) or str(item[key]) == want
 
 
 def resolve(data: Any, path: str) -> Any:
     """The value at ``path``: a key or index per step; ``[*]`` fans out over a list's items (or a
-    dict's values), ``[key=value]`` keeps the items whose ``key`` equals ``value``; after a fan-out
-    the result is the list of what each item gave (a second ``[key=value]`` narrows that list)."""
-    items, fanned = [data], False
+    dict's values), ``[key=value]`` keeps the items whose ``key`` equals ``value`` (``[?key]``: the
+    items that have ``key``); after a fan-out
+    the result is the list of what each item gave (a second ``[key=value]`` narrows that list, and an
+    index right after them picks one item: ``runs[label=new][0]``)."""
+    items, fanned, just_fanned = [data], False, False
     for step in steps(path):
         inner = step[1:-1] if step.startswith("[") else None
-        test = inner.split("=", 1) if inner is not None and "=" in inner else None
+        test = (inner.split("=", 1) if "=" in inner else ([inner[1:], None] if inner.startswith("?") else None)) \
+            if inner is not None else None
         if test and fanned:  # a second filter narrows the items already fanned out
             items = [x for x in items if _matches(x, *test)]
             continue
+        if just_fanned and inner is not None and re.fullmatch(r"-?\d+", inner):
+            try:  # an index right after [*] or a filter picks one of the items it gave
+                items, fanned, just_fanned = [items[int(inner)]], False, False
+            except IndexError:
+                raise FigureError(f"no item {inner} among the {len(items)} of {path!r}") from None
+            continue
+        just_fanned = inner == "*" or bool(test)
         nxt: list[Any] = []
         for item in items:
             if inner == "*" or test:
@@ -172,29 +177,42 @@ def _fmt(v: Any, spec: str) -> str:
         raise FigureError(f"format {spec!r} does not apply to {v!r}") from None
 
 
-def divide(a: Any, b: Any) -> Any:
-    """``a / b``, item by item when either is a list."""
+def percentile(values: list[float], q: float) -> float:
+    """The q-th percentile, linear between the order statistics (NumPy's default)."""
+    v = sorted(values)
+    k = (len(v) - 1) * q / 100
+    lo = int(k)
+    return v[lo] + (v[min(lo + 1, len(v) - 1)] - v[lo]) * (k - lo)
+
+
+def combine(op: str, a: Any, b: Any) -> Any:
+    """``a op b`` for op in ``/ + -``, item by item when either is a list."""
     if isinstance(a, list) or isinstance(b, list):
         la = a if isinstance(a, list) else [a] * len(b)
         lb = b if isinstance(b, list) else [b] * len(a)
         if len(la) != len(lb):
-            raise FigureError(f"cannot divide {len(la)} values by {len(lb)}")
-        return [divide(x, y) for x, y in zip(la, lb)]
-    if _number(b) == 0:
+            raise FigureError(f"cannot combine {len(la)} values with {len(lb)}")
+        return [combine(op, x, y) for x, y in zip(la, lb)]
+    x, y = _number(a), _number(b)
+    if op == "/" and y == 0:
         raise FigureError("division by zero")
-    return _number(a) / b
+    return x / y if op == "/" else (x + y if op == "+" else x - y)
 
 
 def render(data: Any, expr: str) -> str:
-    """The text of one figure of ``data``: ``PATH [/ PATH] [| OPS]``."""
-    path, _, ops = expr.partition(" | ")
-    values = [resolve(data, p) for p in path.split(" / ")]
-    if len(values) > 2:
-        raise FigureError(f"at most one '/' in {path!r}")
-    value = divide(*values) if len(values) == 2 else values[0]
+    """The text of one figure of ``data``: ``PATH [/ PATH] [; OPS]`` (or ``+``, ``-`` between two paths)."""
+    path, _, ops = expr.partition(" ; ")
+    parts = BINARY.split(path)
+    if len(parts) > 3:
+        raise FigureError(f"at most one of ' / ', ' + ', ' - ' in {path!r}")
+    value = resolve(data, parts[0]) if len(parts) == 1 else combine(parts[1], resolve(data, parts[0]), resolve(data, parts[2]))
     spec, join, shape = "", " / ", None
     for op in ops.split():
-        if op in REDUCERS or op in ("range", "interval", "sorted"):
+        if PERCENTILE.fullmatch(op):
+            if not isinstance(value, list):
+                raise FigureError(f"{op} needs several values; the path gives one")
+            value = percentile([_number(v) for v in value], float(op[1:]))
+        elif op in REDUCERS or op in ("range", "interval", "sorted"):
             if not isinstance(value, list):
                 raise FigureError(f"{op} needs several values; the path gives one")
             if op == "count":
@@ -212,6 +230,12 @@ def render(data: Any, expr: str) -> str:
             value = [_number(v) * 100 for v in value] if isinstance(value, list) else _number(value) * 100
         elif op == "commas":
             join = ", "
+        elif m := VERDICT.fullmatch(op):
+            if isinstance(value, list):
+                raise FigureError(f"{op} needs one value; reduce the list first")
+            limit, yes, no = float(m.group(2)), m.group(3), m.group(4)
+            ok = {"<=": _number(value) <= limit, "<": value < limit, ">=": value >= limit, ">": value > limit}[m.group(1)]
+            return (yes if ok else no).replace("_", " ")
         else:
             _fmt(1.5, op)
             spec = op
@@ -245,7 +269,7 @@ def provenance(data: Any, name: str) -> str:
 
 
 def figure(spec: str, results: Path = RESULTS) -> tuple[str, str]:
-    """``(file, rendered text)`` of a marker's spec: ``FILE @`` or ``FILE PATH [| OPS]``."""
+    """``(file, rendered text)`` of a marker's spec: ``FILE @`` or ``FILE PATH [; OPS]``."""
     name, _, expr = spec.strip().partition(" ")
     if not expr.strip():
         raise FigureError(f"marker '{spec}' names no path (or '@')")
@@ -260,74 +284,28 @@ def figure(spec: str, results: Path = RESULTS) -> tuple[str, str]:
 # Documents
 
 
-def code_lines(lines: list[str]) -> set[int]:
-    """Indices of lines in fenced or indented code blocks."""
-    out, fence, prev_blank, in_indent = set(), None, True, False
+def blocks(lines: list[str], code: set[int]) -> list[tuple[int, int]]:
+    """(section, block) of each line: a section starts at a heading, a block at a blank line."""
+    out, section, block, prev_blank = [], 0, 0, False
     for i, line in enumerate(lines):
-        s = line.strip()
-        if fence is not None:
-            out.add(i)
-            if s.startswith(fence):
-                fence = None
-        elif s.startswith(("```", "~~~")):
-            fence = s[:3]
-            out.add(i)
-        elif line.startswith(("    ", "\t")) and s and (prev_blank or in_indent):
-            out.add(i)
-            in_indent = True
-        elif s:
-            in_indent = False
-        prev_blank = not s
-    return out
-
-
-def blocks(lines: list[str]) -> list[int]:
-    """The block (run of non-blank lines) each line belongs to, counted from 0."""
-    out, b, prev_blank = [], 0, False
-    for line in lines:
         blank = not line.strip()
+        if i not in code and line.startswith("#"):
+            section += 1
         if blank and not prev_blank:
-            b += 1
-        out.append(b)
+            block += 1
+        out.append((section, block))
         prev_blank = blank
     return out
-
-
-def bare_figures(doc: str, lines: list[str], code: set[int]) -> list[tuple[int, str, str]]:
-    """(line, figure, the line's text) of every measured-looking number outside a marker."""
-    out = []
-    strict = doc in STRICT
-    for i, line in enumerate(lines):
-        if i in code or line.lstrip().startswith("#"):
-            continue
-        text = LINK_TARGET.sub("]()", COMMENT.sub(" ", MARKER.sub(" ", CODE_SPAN.sub(" ", line))))
-        hits = [m for m in UNIT.finditer(text)]
-        if strict:
-            hits += [m for m in DECIMAL.finditer(text) if not any(h.start() <= m.start() < h.end() for h in hits)]
-        for m in hits:
-            if re.search(BOUND + r"\s*\(?$", text[:m.start()], re.I):
-                continue
-            out.append((i + 1, m.group(0), text))
-    return out
-
-
-def allowed(doc: str, figure_text: str, line: str, allow: dict[str, list[str]], used: set[tuple[str, str]]) -> bool:
-    """Whether an allow-listed phrase of ``doc`` (or of every doc, '*') holds this figure."""
-    for key in (doc, "*"):
-        for phrase in allow.get(key, ()):
-            if figure_text in phrase and phrase in line:
-                used.add((key, phrase))
-                return True
-    return False
 
 
 def process(doc: str, text: str, check: bool, results: Path = RESULTS) -> tuple[str, list[Problem], int]:
     """Check (or rewrite) one document: its new text, the problems found, figures changed."""
     lines = text.split("\n")
-    code, block_of = code_lines(lines), blocks(lines)
+    code = code_lines(lines)
+    block_of = blocks(lines, code)
     problems: list[Problem] = []
-    quoted: dict[int, set[str]] = {}
-    sourced: dict[int, set[str]] = {}
+    quoted: dict[tuple[int, int], set[str]] = {}
+    sourced: dict[tuple[int, int], set[str]] = {}
     changed = 0
     new_lines = []
     for i, line in enumerate(lines):
@@ -347,18 +325,23 @@ def process(doc: str, text: str, check: bool, results: Path = RESULTS) -> tuple[
                 problems.append(Problem(doc, i + 1, f"differs: the text says {shown!r}, results/{name} gives {want!r} [{spec}]"))
                 return m.group(0)
             return m.group(0)[: m.start(2) - m.start()] + want + m.group(0)[m.end(2) - m.start():]
-        new = MARKER.sub(sub, line)
-        if i in code and MARKER.search(line):
-            problems.append(Problem(doc, i + 1, "a marker inside code is shown as it is: move it out"))
-        if STRAY.search(MARKER.sub("", line)):
-            problems.append(Problem(doc, i + 1, "an unmatched <!-- fig --> or <!-- /fig --> "
-                                                "(a marker opens and closes on one line)"))
-        new_lines.append(new)
-    for b, names in quoted.items():
-        for name in sorted(names - sourced.get(b, set()) - sourced.get(b - 1, set())):
-            line = next(i for i, x in enumerate(block_of) if x == b) + 1
-            problems.append(Problem(doc, line, f"figures from results/{name} without its date and machine "
-                                               f"(<!-- fig {name} @ -->) in this block or the one before"))
+        if i in code:  # code is shown as it is: a marker there is an example, not a figure
+            new_lines.append(line)
+            continue
+        pieces = CODE_SPAN.split(line)
+        spans = CODE_SPAN.findall(line)
+        for k, piece in enumerate(pieces):
+            pieces[k] = MARKER.sub(sub, piece)
+            if STRAY.search(MARKER.sub("", piece)):
+                problems.append(Problem(doc, i + 1, "an unmatched <!-- fig --> or <!-- /fig --> "
+                                                    "(a marker opens and closes on one line)"))
+        new_lines.append("".join(p + (spans[k] if k < len(spans) else "") for k, p in enumerate(pieces)))
+    for (section, block), names in quoted.items():
+        known = {n for (s, b), got in sourced.items() if s == section and b <= block for n in got}
+        for name in sorted(names - known):
+            line = block_of.index((section, block)) + 1
+            problems.append(Problem(doc, line, f"figures from results/{name} without its date and machine: "
+                                               f"<!-- fig {name} @ --> in this block or before it under the same heading"))
     return "\n".join(new_lines), problems, changed
 
 
@@ -413,7 +396,7 @@ def leaves(data: Any, prefix: str = "") -> list[tuple[str, Any]]:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="change nothing; report differences (exit 1)")
-    parser.add_argument("--get", nargs=2, metavar=("FILE", "EXPR"), help="render one figure, e.g. bench.json 'a.b | .1f'")
+    parser.add_argument("--get", nargs=2, metavar=("FILE", "EXPR"), help="render one figure, e.g. bench.json 'a.b ; .1f'")
     parser.add_argument("--paths", metavar="FILE", help="list every value of a results file with its path")
     args = parser.parse_args(argv)
     try:

@@ -60,12 +60,12 @@ SOURCE = "<!-- fig r.json @ -->2026-11-26 09:46 UTC, 2-CPU Linux x86_64, load 1.
 
 
 def test_a_figure_that_agrees_passes(tmp_path: Path) -> None:
-    doc = f"Measured {SOURCE}: <!-- fig r.json runs[label=new].wall_s | range .0f -->81-94<!-- /fig --> s.\n"
+    doc = f"Measured {SOURCE}: <!-- fig r.json runs[label=new].wall_s ; range .0f -->81-94<!-- /fig --> s.\n"
     assert figures.run(check=True, root=_site(tmp_path, doc, DATA), allow={}) == ([], 0)
 
 
 def test_a_figure_that_differs_fails_the_check_and_is_rewritten(tmp_path: Path) -> None:
-    doc = f"Measured {SOURCE}: <!-- fig r.json runs[0].wall_s | .1f -->80.0<!-- /fig --> s.\n"
+    doc = f"Measured {SOURCE}: <!-- fig r.json runs[0].wall_s ; .1f -->80.0<!-- /fig --> s.\n"
     root = _site(tmp_path, doc, DATA)
     problems, differ = figures.run(check=True, root=root, allow={})
     assert differ == 1 and len(problems) == 1 and "'80.0'" in problems[0].text and "'81.4'" in problems[0].text
@@ -94,12 +94,13 @@ def test_results_without_date_and_machine_fail(tmp_path: Path) -> None:
     assert any("no top-level 'date' and 'machine'" in p.text for p in problems)
 
 
-def test_figures_need_their_date_and_machine_in_the_block_or_the_one_before(tmp_path: Path) -> None:
+def test_figures_need_their_date_and_machine_before_them_under_the_same_heading(tmp_path: Path) -> None:
     table = "| run | s |\n|---|---|\n| new | <!-- fig r.json runs[0].wall_s -->81.37<!-- /fig --> |\n"
-    assert figures.run(check=True, root=_site(tmp_path / "a", f"Measured {SOURCE}:\n\n{table}", DATA), allow={}) == ([], 0)
-    far = f"Measured {SOURCE}.\n\nSomething else.\n\n{table}"
-    problems, _ = figures.run(check=True, root=_site(tmp_path / "b", far, DATA), allow={})
-    assert len(problems) == 1 and "without its date and machine" in problems[0].text
+    for i, doc in enumerate([f"Measured {SOURCE}:\n\n{table}", f"# A\n\nMeasured {SOURCE}.\n\nSomething else.\n\n{table}"]):
+        assert figures.run(check=True, root=_site(tmp_path / str(i), doc, DATA), allow={}) == ([], 0)
+    for i, doc in enumerate([f"Measured {SOURCE}.\n\n## B\n\n{table}", f"{table}\nMeasured {SOURCE}.\n", table]):
+        problems, _ = figures.run(check=True, root=_site(tmp_path / f"bad{i}", doc, DATA), allow={})
+        assert len(problems) == 1 and "without its date and machine" in problems[0].text
 
 
 @pytest.mark.parametrize("text, bare", [
@@ -109,6 +110,7 @@ def test_figures_need_their_date_and_machine_in_the_block_or_the_one_before(tmp_
     ("The target: at most 20 s, under 1 s for later runs, within 3 %.", []),
     ("Run `bench.py --quick  # ~1 min` or\n\n    python x.py  # 4 min\n", []),
     ("A marked <!-- fig r.json runs[0].wall_s -->81.37<!-- /fig --> s figure.", []),
+    ("An example, `<!-- fig r.json runs[0].wall_s -->2.5<!-- /fig --> s` or `<!-- fig r.json @ -->`.", []),
 ])
 def test_an_unmarked_measured_figure_fails(tmp_path: Path, text: str, bare: list[str]) -> None:
     problems, _ = figures.run(check=True, root=_site(tmp_path, f"{SOURCE}\n{text}\n", DATA), allow={})
@@ -139,23 +141,32 @@ def test_unmarking_a_real_readme_figure_fails() -> None:
 
 
 @pytest.mark.parametrize("expr, text", [
-    ("runs[*].wall_s | max .1f", "135.2"),
-    ("runs[*].wall_s | median .0f", "104"),
-    ("runs[label=new].wall_s | count", "2"),
-    ("runs[label=new].wall_s | .1f", "81.4 / 93.8"),
-    ("runs[label=new].wall_s | interval .0f", "[81, 94]"),
-    ("runs[label=new].wall_s / runs[label=old].wall_s | first .2f", "0.60"),
-    ("runs[1].wall_s | /60 .2f", "2.25"),
-    ("runs[1].wall_s / runs[0].wall_s | % .0f", "166"),
+    ("runs[*].wall_s ; max .1f", "135.2"),
+    ("runs[*].wall_s ; median .0f", "104"),
+    ("runs[*].wall_s ; p50 .0f", "104"),
+    ("runs[*].wall_s ; p95 .2f", "131.93"),
+    ("runs[label=new].wall_s ; count", "2"),
+    ("runs[label=new].wall_s ; .1f", "81.4 / 93.8"),
+    ("runs[label=new][1].wall_s ; .1f", "93.8"),
+    ("runs[*][-1].label", "old"),
+    ("runs[?label][?wall_s] ; count", "4"),
+    ("runs[label=new].wall_s ; interval .0f", "[81, 94]"),
+    ("runs[label=new].wall_s / runs[label=old].wall_s ; first .2f", "0.60"),
+    ("runs[1].wall_s ; /60 .2f", "2.25"),
+    ("runs[0].wall_s + runs[1].wall_s ; .2f", "216.57"),
+    ("runs[label=old].wall_s - runs[label=new].wall_s ; .1f", "53.8 / 19.6"),
+    ("runs[1].wall_s / runs[0].wall_s ; % .0f", "166"),
     ("runs[0].label", "new"),
     ("machine.load[1]", "1.5"),
+    ("runs[label=new].wall_s ; max <=90?met:missed_by_far", "missed by far"),
+    ("runs[0].wall_s ; <=90?met:missed", "met"),
 ])
 def test_rendering(expr: str, text: str) -> None:
     assert figures.render(DATA, expr) == text
 
 
 def test_the_command_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    assert figures.main(["--get", "bench.json", "paper_numba.best_s | .3f"]) == 0
+    assert figures.main(["--get", "bench.json", "paper_numba.best_s ; .3f"]) == 0
     assert capsys.readouterr().out.strip().replace(".", "").isdigit()
     assert figures.main(["--get", "bench.json", "no.such.path"]) == 2
     assert "missing" in capsys.readouterr().err
