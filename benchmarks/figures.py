@@ -149,8 +149,6 @@ def resolve(data: Any, path: str) -> Any:
             else:
                 raise FigureError(f"missing: {key!r} in {path!r}")
         items = nxt
-    if fanned and not items:
-        raise FigureError(f"no item matches in {path!r}")
     return items if fanned else items[0]
 
 
@@ -209,14 +207,16 @@ def render(data: Any, expr: str) -> str:
     spec, join, shape = "", " / ", None
     for op in ops.split():
         if PERCENTILE.fullmatch(op):
-            if not isinstance(value, list):
-                raise FigureError(f"{op} needs several values; the path gives one")
+            if not isinstance(value, list) or not value:
+                raise FigureError(f"{op} needs several values; {path!r} gives {'none' if value == [] else 'one'}")
             value = percentile([_number(v) for v in value], float(op[1:]))
         elif op in REDUCERS or op in ("range", "interval", "sorted"):
             if not isinstance(value, list):
                 raise FigureError(f"{op} needs several values; the path gives one")
             if op == "count":
                 value = len(value)
+            elif not value:
+                raise FigureError(f"no item matches in {path!r} (only 'count' quotes nothing as 0)")
             elif op == "sorted":
                 value = sorted(value)
             elif op in ("range", "interval"):
@@ -241,6 +241,8 @@ def render(data: Any, expr: str) -> str:
             spec = op
     if not isinstance(value, list):
         return _fmt(value, spec)
+    if not value:
+        raise FigureError(f"no item matches in {path!r} (only 'count' quotes nothing as 0)")
     texts = [_fmt(v, spec) for v in value]
     if shape is None:
         return join.join(texts)

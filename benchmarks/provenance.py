@@ -24,10 +24,11 @@ ROOT = Path(__file__).resolve().parent.parent
 
 @dataclass(frozen=True)
 class Started:
-    """The moment a benchmark started: UTC time and the 1-minute load average."""
+    """The moment a benchmark started: UTC time, the 1-minute load average, the checkout's commit."""
 
     date: str
     load: float | None
+    code: str | None
 
 
 def load_now() -> float | None:
@@ -40,7 +41,7 @@ def load_now() -> float | None:
 
 def start() -> Started:
     """Record the start of a benchmark."""
-    return Started(time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_now())
+    return Started(time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), load_now(), code_version())
 
 
 def cpu_model() -> str:
@@ -74,9 +75,10 @@ def machine(load_before: float | None) -> dict[str, Any]:
 
 
 def stamped(started: Started, data: dict[str, Any], code: str | None = "checkout") -> dict[str, Any]:
-    """``data`` with ``date``, ``code`` and ``machine`` first. ``code`` is this checkout's commit
-    unless given (None: not recorded). Keys of an existing ``data["machine"]`` are kept."""
+    """``data`` with ``date``, ``code`` and ``machine`` first. ``code`` is this checkout's commit when
+    the benchmark started unless given (None: not recorded). Keys of an existing
+    ``data["machine"]`` are kept."""
     rest = {k: v for k, v in data.items() if k not in ("date", "code", "machine")}
     old = data.get("machine") if isinstance(data.get("machine"), dict) else {}
-    return {"date": started.date, "code": code_version() if code == "checkout" else code,
+    return {"date": started.date, "code": started.code if code == "checkout" else code,
             "machine": {**old, **machine(started.load)}, **rest}

@@ -150,6 +150,7 @@ def test_unmarking_a_real_readme_figure_fails() -> None:
     ("runs[label=new][1].wall_s ; .1f", "93.8"),
     ("runs[*][-1].label", "old"),
     ("runs[?label][?wall_s] ; count", "4"),
+    ("runs[label=gone] ; count", "0"),
     ("runs[label=new].wall_s ; interval .0f", "[81, 94]"),
     ("runs[label=new].wall_s / runs[label=old].wall_s ; first .2f", "0.60"),
     ("runs[1].wall_s ; /60 .2f", "2.25"),
