@@ -39,6 +39,7 @@ ALLOW: dict[str, list[str]] = {
         "exposure 1/1000 s",        # a camera's default exposure
         "falls 10 % of",            # survey lines' extension rule
         "at 97 % of",               # the overlaps' planning margin
+        "and 95 % of the speed",    # captures' speed margin under the blur limit
         "down to 40 % of",          # how far a facade position may be pulled in
         "plus 2 s per task",        # the allocation's transit model
         "one 0.1 s tick",           # the planner's tick

@@ -84,6 +84,7 @@ def main() -> None:
     parser.add_argument("sources", nargs="*", default=[f"new={ROOT / 'src'}"],
                         help="[LABEL=]SRC: src/ directories to compare, run in turn (default: new=src)")
     parser.add_argument("--runs", type=int, default=3, help="runs of each (default 3)")
+    parser.add_argument("--note", default="", help="a caveat the docs quote after the figures (default: none)")
     parser.add_argument("--json", type=Path, default=ROOT / "benchmarks" / "results" / "first_run.json",
                         help="where to write every run (default results/first_run.json)")
     args = parser.parse_args()
@@ -95,7 +96,7 @@ def main() -> None:
             runs.append({"label": label, **cold_run(os.path.abspath(src))})
             print(json.dumps(runs[-1]), flush=True)
     report = {"command": "staghunt plan scenario2 --no-plots", "cache": "empty (a fresh NUMBA_CACHE_DIR per run)",
-              "runs": runs}
+              "note": args.note, "runs": runs}
     args.json.write_text(json.dumps(provenance.stamped(started, report), indent=1) + "\n")
 
 

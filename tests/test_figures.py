@@ -45,6 +45,12 @@ def test_the_docs_quote_figures_from_the_results() -> None:
     assert len(quoted["benchmarks/README.md"]) >= 8
 
 
+@pytest.mark.parametrize("path", sorted((BENCH / "results").glob("*.json")), ids=lambda p: p.name)
+def test_every_results_file_says_when_and_where(path: Path) -> None:
+    text = figures.provenance(json.loads(path.read_text(encoding="utf-8")), path.name)
+    assert text.startswith("20") and "CPU" in text and "load" in text
+
+
 def _site(tmp: Path, doc: str, data: dict | None = None) -> Path:
     (tmp / "benchmarks" / "results").mkdir(parents=True)
     (tmp / "README.md").write_text(doc, encoding="utf-8")
