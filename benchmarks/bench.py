@@ -44,6 +44,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+import provenance
+
 HERE = Path(__file__).resolve().parent
 RESULTS = HERE / "results"
 PAPER = {"particles": 2000, "iterations": 1500, "waypoints": 10}
@@ -227,6 +229,7 @@ def main() -> int:
     q = args.quick
     paper = dict(PAPER) if not q else {"particles": 500, "iterations": 100, "waypoints": 10}
     numpy_iters = 10 if q else 50
+    started = provenance.start()
     report: dict[str, Any] = {"quick": q, "machine": {
         "python": platform.python_version(), "platform": platform.platform(),
         "cores": os.cpu_count(), "usable_cores": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else None,
@@ -319,6 +322,7 @@ def main() -> int:
         report["quality"] = quality(q, out_dir)
 
     report["machine"]["loadavg_end"] = loadavg()
+    report = provenance.stamped(started, report)
     (out_dir / "bench.json").write_text(json.dumps(report, indent=1))
     (out_dir / "summary.md").write_text(summary(report, paper, numpy_iters))
     log(f"wrote {out_dir / 'summary.md'}")

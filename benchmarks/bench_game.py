@@ -52,6 +52,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import provenance
 
 import staghunt
 from staghunt.inputs import parse_seeds
@@ -329,6 +330,7 @@ def main() -> None:
     ap.add_argument("--tag", default="", help="suffix of the result files (game<tag>.md)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
+    started = provenance.start()
     meta = {"machine": platform.processor() or platform.machine(), "cpus": os.cpu_count(),
             "load_start": os.getloadavg(), "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
             "source": str(Path(staghunt.__file__).parent)}
@@ -352,8 +354,8 @@ def main() -> None:
     if not args.no_write:
         RESULTS.mkdir(exist_ok=True)
         (RESULTS / f"game{args.tag}.json").write_text(
-            json.dumps({"meta": meta, "two_cores": cores, "per_evaluation": per, "small_budget": small,
-                        "certified": cert}, indent=1) + "\n")
+            json.dumps(provenance.stamped(started, {"meta": meta, "two_cores": cores, "per_evaluation": per,
+                                                   "small_budget": small, "certified": cert}), indent=1) + "\n")
         (RESULTS / f"game{args.tag}.md").write_text(
             "# Default method, certificate and Algorithm 1 (benchmarks/bench_game.py)\n\n" + text + "\n")
 

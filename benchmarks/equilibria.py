@@ -33,6 +33,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import provenance
 
 import staghunt
 from staghunt.inputs import parse_seeds
@@ -142,6 +143,7 @@ def main() -> None:
     args = ap.parse_args()
     engine = get_engine("numba", threads=args.threads)
     engine.prepare()
+    started = provenance.start()
     report: dict = {"machine": f"{platform.machine()}, {os.cpu_count()} cores", "load_before": os.getloadavg()[0],
                     "scenarios": {}, "runs": {}}
     for name in args.scenarios.split(","):
@@ -162,7 +164,7 @@ def main() -> None:
     print(text)
     if not args.no_write:
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "equilibria.json").write_text(json.dumps(report, indent=1))
+        (RESULTS / "equilibria.json").write_text(json.dumps(provenance.stamped(started, report), indent=1))
         (RESULTS / "equilibria.md").write_text(text)
         panels = [EquilibriaPanel(name, np.array([d["J"] for d in summ["distinct"]]),
                                   np.array([d["dominated"] for d in summ["distinct"]]),

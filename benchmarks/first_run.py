@@ -5,9 +5,12 @@ sys) that of every process of its tree, the compile helper included, also while 
 after the plan has ended (it compiles what the run could start without). Several source trees
 (``src/`` directories, e.g. this checkout and a ``git worktree`` of an older commit) are run in
 turn, A B A B ..., so that a comparison holds while the shared machine's load drifts; the load
-average is recorded before and after each run. One JSON object a line on stdout:
+average is recorded before and after each run. One JSON object a line on stdout, and all of
+them in ``results/first_run.json`` (with the date, the code and the machine), which the README's
+first-run figures quote (``python benchmarks/figures.py`` re-quotes them):
 
-    python benchmarks/first_run.py --runs 3 src /path/to/old/src > results/first_run.jsonl
+    python benchmarks/first_run.py                          # 3 runs of this checkout, labelled "new"
+    python benchmarks/first_run.py --runs 3 new=src old=/path/to/old/src   # A B A B A B
 """
 
 from __future__ import annotations
@@ -20,8 +23,12 @@ import subprocess
 import sys
 import tempfile
 import time
+from pathlib import Path
 
+import provenance
 import psutil
+
+ROOT = Path(__file__).resolve().parent.parent
 
 
 def cold_run(src: str) -> dict:
@@ -74,12 +81,23 @@ def cold_run(src: str) -> dict:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("sources", nargs="+", help="src/ directories to compare, run in turn")
+    parser.add_argument("sources", nargs="*", default=[f"new={ROOT / 'src'}"],
+                        help="[LABEL=]SRC: src/ directories to compare, run in turn (default: new=src)")
     parser.add_argument("--runs", type=int, default=3, help="runs of each (default 3)")
+    parser.add_argument("--note", default="", help="a caveat the docs quote after the figures (default: none)")
+    parser.add_argument("--json", type=Path, default=ROOT / "benchmarks" / "results" / "first_run.json",
+                        help="where to write every run (default results/first_run.json)")
     args = parser.parse_args()
+    started = provenance.start()
+    labelled = [s.split("=", 1) if "=" in s else [s, s] for s in args.sources]
+    runs = []
     for _ in range(args.runs):
-        for src in args.sources:
-            print(json.dumps(cold_run(src)), flush=True)
+        for label, src in labelled:
+            runs.append({"label": label, **cold_run(os.path.abspath(src))})
+            print(json.dumps(runs[-1]), flush=True)
+    report = {"command": "staghunt plan scenario2 --no-plots", "cache": "empty (a fresh NUMBA_CACHE_DIR per run)",
+              "note": args.note, "runs": runs}
+    args.json.write_text(json.dumps(provenance.stamped(started, report), indent=1) + "\n")
 
 
 if __name__ == "__main__":

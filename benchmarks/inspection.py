@@ -36,6 +36,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
+import provenance
 
 from staghunt.flight.inspection import fly_inspection
 from staghunt.inspection.allocation import Problem
@@ -189,6 +190,7 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true")
     args = ap.parse_args()
+    started = provenance.start()
     seeds = [1] if args.quick else [1, 2]
     long_s = 5.0 if args.quick else 30.0
     rng = np.random.default_rng(37)
@@ -246,7 +248,7 @@ def main() -> int:
         report["teams"][name] = team
     report["machine"]["load_after"] = os.getloadavg()
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "inspection.json").write_text(json.dumps(clean(report), indent=1) + "\n")
+    (RESULTS / "inspection.json").write_text(json.dumps(provenance.stamped(started, clean(report)), indent=1) + "\n")
     (RESULTS / "inspection.md").write_text(table(report))
     print(table(report))
     return 0

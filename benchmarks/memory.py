@@ -5,8 +5,9 @@ peak resident set size (``resource.getrusage(RUSAGE_SELF).ru_maxrss``, read by t
 when the run ends) with what :func:`staghunt.budget.estimate_plan` predicted before the run (the
 figure ``staghunt plan --dry-run`` prints). Target: within 25 %.
 
-    python benchmarks/memory.py                 # both engines, Markdown table on stdout
-    python benchmarks/memory.py --engine numba
+    python benchmarks/memory.py                 # both engines: table on stdout, results/memory_paper.json
+    python benchmarks/memory.py --engine numba --method game --iterations 20 --particles 1e5,2e5,4e5
+                                                # the default method: results/memory_game.json
 
 The runs use the ``paper`` method (one swarm per UAV, the largest swarm arrays of any method)
 with one iteration, no certificate and no figures, so that the swarm arrays dominate and each
@@ -24,6 +25,8 @@ import subprocess
 import sys
 import tempfile
 from pathlib import Path
+
+import provenance
 
 ROOT = Path(__file__).resolve().parents[1]
 SIZES = {"numba": (100_000, 400_000, 1_600_000), "numpy": (2_000, 8_000, 32_000)}
@@ -63,8 +66,9 @@ def main() -> int:
                     help="iterations (game: >= 20, so that its rigid seed runs at least one step)")
     ap.add_argument("--particles", type=lambda t: tuple(int(float(x)) for x in t.split(",")),
                     help="comma-separated particle counts (default: per engine)")
-    ap.add_argument("--json", type=Path, help="also write the rows as JSON")
+    ap.add_argument("--json", type=Path, help="where to write the rows (default results/memory_METHOD.json)")
     args = ap.parse_args()
+    started = provenance.start()
     engines = ["numba", "numpy"] if args.engine == "both" else [args.engine]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -82,8 +86,9 @@ def main() -> int:
     for r in rows:
         print(f"| {r['engine']} | {r['particles']:,} | {r['estimate'] / mib:.0f} | {r['arrays'] / mib:.0f} | "
               f"{r['measured'] / mib:.0f} | {r['ratio']:.2f} |")
-    if args.json:
-        args.json.write_text(json.dumps(rows, indent=2) + "\n")
+    report = {"scenario": args.scenario, "method": args.method, "iterations": args.iterations, "rows": rows}
+    path = args.json or ROOT / "benchmarks" / "results" / f"memory_{args.method}.json"
+    path.write_text(json.dumps(provenance.stamped(started, report), indent=1) + "\n")
     bad = [r for r in rows if not 0.75 <= r["ratio"] <= 1.25]
     return 1 if bad else 0
 

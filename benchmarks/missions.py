@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import provenance
 
 import staghunt
 from staghunt.inputs import parse_seeds
@@ -107,6 +108,7 @@ def main() -> None:
                     help="fly only these seeds (default: every seed; a flight of 8 UAVs takes minutes)")
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
+    started = provenance.start()
     rows = []
     for name in args.scenarios.split(","):
         for budget in args.budgets.split(","):
@@ -122,7 +124,7 @@ def main() -> None:
     print(f"T / bound: median {summary['median_ratio']:.2f}, max {summary['max_ratio']:.2f}")
     if not args.no_write:
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "missions.json").write_text(json.dumps(summary, indent=1) + "\n")
+        (RESULTS / "missions.json").write_text(json.dumps(provenance.stamped(started, summary), indent=1) + "\n")
         (RESULTS / "missions.md").write_text(
             "# Mission time and simulated flight (`benchmarks/missions.py`)\n\n" + table(rows)
             + f"\n\nT / bound: median {summary['median_ratio']:.2f}, max {summary['max_ratio']:.2f}; "

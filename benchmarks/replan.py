@@ -44,6 +44,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import provenance
 
 HERE = Path(__file__).resolve().parent
 
@@ -305,6 +306,7 @@ def main() -> int:
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a FlyConfig setting for every episode, e.g. --set certify_rounds=2 (repeatable)")
     args = ap.parse_args()
+    started = provenance.start()
     overrides = _overrides(args.set)
 
     import staghunt
@@ -333,7 +335,7 @@ def main() -> int:
             if kind == "site_wedge":
                 jobs.append(base)
     if args.solve_only:
-        return _solve_only([j for j in jobs if j.get("wind", 0.0) == 0.0], args.out)
+        return _solve_only([j for j in jobs if j.get("wind", 0.0) == 0.0], args.out, started)
     print(f"{len(jobs)} episodes, {args.jobs} at a time", file=sys.stderr)
     t0 = time.perf_counter()
     rows: list[dict[str, Any]] = []
@@ -352,8 +354,8 @@ def main() -> int:
     meta = {"jobs": args.jobs, "threads_per_solve": threads or "adaptive", "wall_s": wall,
             "loadavg": os.getloadavg(), "cpus": os.cpu_count(), "plans": plans}
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "replan.json").write_text(json.dumps({"meta": meta, "summary": summary, "episodes": rows},
-                                                     indent=1, default=str) + "\n")
+    report = provenance.stamped(started, {"meta": meta, "summary": summary, "episodes": rows})
+    (args.out / "replan.json").write_text(json.dumps(report, indent=1, default=str) + "\n")
     lines = ["| episodes | arrived / stopped / unsafe | collisions | separation breaches | stops | "
              "replans | latency p50 / p95 / max (ms) | in flight (no hover retries) | certified 1 %-equilibria | "
              "tracking RMS / max (m) | extra time median [range] (s) |", "|" + "---|" * 11]
@@ -392,7 +394,7 @@ def _overrides(items: list[str]) -> dict[str, Any]:
     return out
 
 
-def _solve_only(jobs: list[dict[str, Any]], out: Path) -> int:
+def _solve_only(jobs: list[dict[str, Any]], out: Path, started: provenance.Started) -> int:
     rows = []
     for i, job in enumerate(jobs):
         rows.append(solve_only(job))
@@ -410,7 +412,7 @@ def _solve_only(jobs: list[dict[str, Any]], out: Path) -> int:
     md = "\n".join(lines) + (f"\n\none re-plan at a time, adaptive threads, {settings}, load average "
                              f"{os.getloadavg()[0]:.2f} at the end.\n")
     out.mkdir(parents=True, exist_ok=True)
-    (out / "replan_solve.json").write_text(json.dumps(rows, indent=1) + "\n")
+    (out / "replan_solve.json").write_text(json.dumps(provenance.stamped(started, {"episodes": rows}), indent=1) + "\n")
     (out / "replan_solve.md").write_text(md)
     print(md)
     return 0

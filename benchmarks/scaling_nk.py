@@ -24,6 +24,7 @@ Writes ``benchmarks/results/scaling_nk.csv``, ``scaling_nk.md`` and ``scaling_nk
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import time
 from pathlib import Path
@@ -31,6 +32,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
+import provenance  # noqa: E402
 
 from staghunt.costs import CostModel  # noqa: E402
 from staghunt.engine.numba_engine import evaluate as fast_evaluate  # noqa: E402
@@ -98,6 +100,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
     a = ap.parse_args()
+    started = provenance.start()
     rounds, reps = (2, 3) if a.quick else (8, 5)
     cases = {}  # (world, noise, N, K) -> (model, waypoints)
     for n in NS:
@@ -124,6 +127,12 @@ def main() -> None:
             fh.write(f"{r[0]},{r[1]:g},{r[2]},{r[3]},{r[4]:.0f},{r[5]:.0f}\n")
     per = {(w, z, n, K): p for w, z, n, K, _, p in rows}
     team = {(w, z, n, K): t for w, z, n, K, t, _ in rows}
+    report = {"team_allocations_per_call": P, "rounds": rounds, "calls_per_round": reps,
+              "rows": [{"world": w, "noise_m": z, "N": n, "K": K, "ns_per_team": round(t, 1), "ns_per_path": round(p, 1)}
+                       for w, z, n, K, t, p in rows],
+              "ratio_24_to_3": [{"world": w, "noise_m": z, "K": K, "ratio": round(per[(w, z, 24, K)] / per[(w, z, 3, K)], 4)}
+                                for w, z in CONDITIONS for K in KS]}
+    (RESULTS / "scaling_nk.json").write_text(json.dumps(provenance.stamped(started, report), indent=1) + "\n")
     lines = ["# Per-evaluation time against N and K (compiled engine, one thread)", "",
              f"P = {P} team allocations per call, best of {rounds} rounds x {reps} calls (all cases in every round);",
              "ns per path = ns per team evaluation / N.",
@@ -158,7 +167,7 @@ def main() -> None:
     axes[0].legend()
     fig.suptitle("Compiled engine: per-path cost against N and K (one thread)")
     fig.savefig(RESULTS / "scaling_nk.png", dpi=110)
-    print(f"wrote {RESULTS / 'scaling_nk.csv'}, scaling_nk.md, scaling_nk.png")
+    print(f"wrote {RESULTS / 'scaling_nk.csv'}, scaling_nk.json, scaling_nk.md, scaling_nk.png")
 
 
 if __name__ == "__main__":

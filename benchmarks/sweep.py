@@ -28,6 +28,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import provenance
+
 SPEC = """
 scenarios = ["scenario1"]
 methods = ["game"]
@@ -94,6 +96,7 @@ def main() -> None:
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     ap.add_argument("--part", nargs=5, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    started = provenance.start()
     if args.part:
         index, parts, spec_path, out, at = args.part
         part(Path(spec_path), int(index), int(parts), Path(out), float(at))
@@ -148,7 +151,8 @@ def main() -> None:
     print(f"ratio per round: {', '.join(f'{x:.2f}x' for x in ratios)}; median {statistics.median(ratios):.2f}x; "
           f"two plain processes: median {statistics.median(ceilings):.2f}x")
     if args.json:
-        Path(args.json).write_text(json.dumps({"tasks": len(sweep.tasks), "budget": budget, "rounds": rounds}, indent=2))
+        Path(args.json).write_text(json.dumps(provenance.stamped(started, {"tasks": len(sweep.tasks), "budget": budget,
+                                                                      "rounds": rounds}), indent=2))
 
 if __name__ == "__main__":
     main()

@@ -37,6 +37,8 @@ import tempfile
 import time
 from pathlib import Path
 
+import provenance
+
 ROOT = Path(__file__).resolve().parents[1]
 SIZES = (10_000, 100_000, 1_000_000)
 METHODS = 2
@@ -184,6 +186,7 @@ def main() -> None:
     ap.add_argument("--json", metavar="FILE", help="also write the figures as JSON")
     ap.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
+    started = provenance.start()
     if args.child:
         what, spec_path, out = args.child
         (measure if what == "measure" else fill)(Path(spec_path), Path(out))
@@ -230,7 +233,7 @@ def main() -> None:
                       f"included); Ctrl-C took {got['stop_s']:.1f} s (exit {got['exit']}, "
                       f"{got['errors']} traceback or error lines); load {load()}", flush=True)
     if args.json:
-        Path(args.json).write_text(json.dumps({"records": records}, indent=2) + "\n")
+        Path(args.json).write_text(json.dumps(provenance.stamped(started, {"records": records}), indent=2) + "\n")
 
 
 if __name__ == "__main__":

@@ -31,6 +31,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import provenance
 
 HERE = Path(__file__).resolve().parent
 DT = 0.01
@@ -83,6 +84,7 @@ def main() -> int:
     ap.add_argument("--repeats", type=int, default=2, help="alternated pairs of runs per size")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     args = ap.parse_args()
+    started = provenance.start()
 
     from staghunt.flight.vehicles import SimulatedTeam
 
@@ -116,7 +118,7 @@ def main() -> int:
             "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()), "cpus": os.cpu_count()}
     args.out.mkdir(parents=True, exist_ok=True)
     stem = "vehicles" if args.airframe == "hummingbird" else f"vehicles_{args.airframe}"
-    (args.out / f"{stem}.json").write_text(json.dumps({"meta": meta, "rows": rows}, indent=1) + "\n")
+    (args.out / f"{stem}.json").write_text(json.dumps(provenance.stamped(started, {"meta": meta, "rows": rows}), indent=1) + "\n")
     lines = [f"Vehicles, {args.airframe}, 100 Hz, 5 m/s Dryden wind ({meta['date']}; load average "
              f"{min(load):.1f}-{max(load):.1f} on {meta['cpus']} CPUs; kernel compile or cache load "
              f"{compile_s:.1f} s). Simulated seconds per wall second (per CPU second), medians of "
