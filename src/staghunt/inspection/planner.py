@@ -393,19 +393,29 @@ class Flight:
         time to report."""
         scenario = self.scenario
         limit = np.array([scenario.costs.safe_distance + 2 * u.radius for u in scenario.team])
+        idx = [i for i, p in enumerate(pieces) if p]
+        if len(idx) < 2:
+            return
+
+        def track(i: int) -> np.ndarray:  # (T, 3) UAV idx[i] at ts (holding where it ends)
+            return Timeline((tuple(pieces[idx[i]]),), ("",)).positions(ts)[0]
+
+        ts = np.zeros(0)
+        moved: int | None = None
         for _ in range(rounds):
-            tl = Timeline(tuple(tuple(p) for p in pieces if p), tuple(str(i) for i, p in enumerate(pieces) if p))
-            idx = [i for i, p in enumerate(pieces) if p]
-            if len(idx) < 2:
-                return
-            ts = np.arange(0.0, tl.end + step, step)
-            pos = tl.positions(ts)  # (n, T, 3)
+            end = max(pieces[k][-1].t1 for k in idx)
+            if moved is None or end > ts[-1]:  # (re)sample everyone; else only the one delayed
+                ts = np.arange(after + step, end + step + 30.0, step)
+                pos = np.stack([track(i) for i in range(len(idx))])  # (n, T, 3)
+            else:
+                pos[moved] = track(moved)
             d = np.linalg.norm(pos[:, None] - pos[None, :], axis=-1)  # (n, n, T)
             d[np.arange(len(idx)), np.arange(len(idx))] = math.inf
-            bad = (d <= limit[idx][:, None, None] + SEPARATION_MARGIN) & (ts > after)[None, None, :]
+            bad = d <= limit[idx][:, None, None] + SEPARATION_MARGIN
             if not bad.any():
                 return
-            a, b, ti = (int(v[0]) for v in np.nonzero(bad))
+            ti = int(np.argmax(bad.any(axis=(0, 1))))  # the earliest conflict first
+            a, b = (int(v[0]) for v in np.nonzero(bad[:, :, ti]))
             t_hit = ts[ti]
             near = bad[a, b, ti:]
             last = ti + (int(np.argmin(near)) if not near.all() else len(near))
@@ -427,6 +437,7 @@ class Flight:
             if p.label == "outbound" or sum(q.duration for q in pieces[k] if q.label.startswith("waits for a team")) > 120:
                 return  # waiting does not help (or no longer): the check in time reports it
             self._delay(pieces[k], pieces[k].index(p), by)
+            moved = idx.index(k)
 
     @staticmethod
     def _delay(pieces: list[Piece], i: int, by: float) -> None:
