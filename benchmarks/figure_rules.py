@@ -71,6 +71,14 @@ ALLOW: dict[str, list[str]] = {
         "within 1 cm over 10 s",    # the tolerance of tests/test_vehicles.py
         "max \\|dx\\| over 10 s",     # the same, as a column
         "beta in {0.5, 2}",         # sweep.py's grid
+        "at 1.5 cm/px",             # the built-in inspections' targets
+        "at 0.5 cm/px",
+        "(10 s apart)",             # inspection.py's losses
+        "at 25, 40, 55 and 70 %",
+        "OR-Tools run 30 s",        # its reference runs
+        "(the camera's: 0.7 s)",    # the camera's minimum interval
+        "1/1000 s",                 # the exposure
+        "(legs x 1.25, 2 s per task)",  # the allocation's model
     ],
 }
 

@@ -31,7 +31,7 @@ import numpy as np
 
 from staghunt.inspection.tasks import Fleet, Task, window_of
 
-__all__ = ["Allocation", "Problem", "Route", "Visit", "greedy", "improve", "lower_bound", "time_routes"]
+__all__ = ["Allocation", "Problem", "Route", "Visit", "greedy", "improve", "lower_bound", "shortfall", "time_routes"]
 
 
 
@@ -320,3 +320,19 @@ def improve(problem: Problem, plan: list[list[tuple[int, int]]], passes: int = 2
         if k != worst:
             plan[k], ends[k] = rk, ek
     return plan
+
+
+def shortfall(problem: Problem, alloc: Allocation) -> str:
+    """Why no allocation fits the endurances, in words: what is missing."""
+    fleet = problem.fleet
+    lb = lower_bound(problem)
+    short = [k for k in range(fleet.n) if fleet.active[k] and fleet.endurance[k] < lb]
+    total = sum(float(fleet.endurance[k]) for k in range(fleet.n) if fleet.active[k])
+    need = sum(t.duration for t in problem.tasks if t.required)
+    if need > total:
+        return (f"endurance too short for any allocation: the required capture work alone takes {need:.0f} s, the "
+                f"team has {total:.0f} s of flight in all ({need - total:.0f} s missing)")
+    if short:
+        return (f"endurance too short for any allocation: every UAV needs at least {lb:.0f} s (lower bound of the "
+                f"makespan), {fleet.names[short[0]]} has {fleet.endurance[short[0]]:.0f} s")
+    return f"no allocation meets every endurance and time window ({alloc.message})"

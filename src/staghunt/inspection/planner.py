@@ -32,10 +32,10 @@ from staghunt.acquisition.plan import plan_captures
 from staghunt.acquisition.segments import CapturePlan
 from staghunt.costs import CostModel, to_absolute
 from staghunt.errors import FieldError
-from staghunt.inspection.allocation import Allocation, Problem, lower_bound
+from staghunt.inspection.allocation import Allocation, Problem, shortfall
 from staghunt.inspection.routing import solve
 from staghunt.inspection.legs import leg_scenario, solo_leg, team_leg
-from staghunt.inspection.tasks import Fleet, Task, make_tasks
+from staghunt.inspection.tasks import Fleet, Task, check_capable, make_tasks
 from staghunt.inspection.timeline import Piece, Timeline, capture_piece, hover_piece, path_piece, team_pieces
 from staghunt.result import PlanResult
 from staghunt.scenario.model import Scenario, SolverSettings
@@ -150,29 +150,6 @@ def fleet_of(scenario: Scenario, inspection: Inspection) -> Fleet:
         active=np.ones(n, dtype=bool))
 
 
-def _check_capable(tasks: list[Task], scenario: Scenario) -> None:
-    for t in tasks:
-        if not t.uavs:
-            raise FieldError(f"objectives: {t.objective}: no UAV carries camera {t.segment.camera!r} with a gimbal "
-                             "that reaches its pitch", "objectives")
-
-
-def _shortfall(problem: Problem, alloc: Allocation) -> str:
-    """Why no allocation fits the endurances, in words: what is missing."""
-    fleet = problem.fleet
-    lb = lower_bound(problem)
-    short = [k for k in range(fleet.n) if fleet.active[k] and fleet.endurance[k] < lb]
-    total = sum(float(fleet.endurance[k]) for k in range(fleet.n) if fleet.active[k])
-    need = sum(t.duration for t in problem.tasks if t.required)
-    if need > total:
-        return (f"endurance too short for any allocation: the required capture work alone takes {need:.0f} s, the "
-                f"team has {total:.0f} s of flight in all ({need - total:.0f} s missing)")
-    if short:
-        return (f"endurance too short for any allocation: every UAV needs at least {lb:.0f} s (lower bound of the "
-                f"makespan), {fleet.names[short[0]]} has {fleet.endurance[short[0]]:.0f} s")
-    return f"no allocation meets every endurance and time window ({alloc.message})"
-
-
 def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectConfig = InspectConfig(),
                     seed: int = 0) -> InspectionPlan:
     """Plan the inspection of ``scenario`` (see the module's docstring). Raises
@@ -182,7 +159,7 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
     t = time.perf_counter()
     captures = plan_captures(scenario, inspection)
     tasks = make_tasks(inspection, captures)
-    _check_capable(tasks, scenario)
+    check_capable(tasks)
     times["captures_s"] = time.perf_counter() - t
     fleet = fleet_of(scenario, inspection)
     problem = Problem(tuple(tasks), fleet, slack=SLACK)
@@ -192,7 +169,7 @@ def plan_inspection(scenario: Scenario, inspection: Inspection, config: InspectC
                                                                  config.rounds, config.time_cap_s)
     times["allocation_s"] = time.perf_counter() - t
     if not alloc.ok:
-        raise FieldError(_shortfall(problem, alloc), "endurance")
+        raise FieldError(shortfall(problem, alloc), "endurance")
     t = time.perf_counter()
     fly = Flight(scenario, inspection, config, seed, tasks)
     timeline, outbound, solo, problems = fly.build(alloc)
@@ -245,6 +222,11 @@ def from_way_out(fly: Flight, problem: Problem, alloc: Allocation, timeline: Tim
     return replace(again, lower_bound=alloc.lower_bound), built, fly2
 
 
+def _certified(result: PlanResult, config: InspectConfig) -> bool:
+    """The team leg is certified an equilibrium (or nothing is certified at all)."""
+    return config.certify is None or (result.certificate is not None and result.certificate.is_equilibrium)
+
+
 def check_timeline(scenario: Scenario, timeline: Timeline, step: float = 0.1) -> SafetyReport:
     """The team's flight checked every ``step`` s (separation at the same instant, clearance,
     ground, ceiling): :func:`staghunt.trajectory.check_positions`."""
@@ -292,10 +274,16 @@ class Flight:
             # spreads out to its first captures at the end of the leg
             outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", settings, self.seed,
                                 self.config.engine, self.config.certify, reference=fleet.starts[flying])
-            if not outbound.feasible:  # once more with twice the budget
+            if not outbound.feasible or not _certified(outbound, self.config):  # once more, twice the budget
                 bigger = settings.with_(particles=2 * settings.particles, iterations=2 * settings.iterations)
-                outbound = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", bigger, self.seed + 1,
-                                    self.config.engine, self.config.certify, reference=fleet.starts[flying])
+                again = team_leg(scenario, flying, fleet.starts[flying], firsts, "outbound", bigger, self.seed + 1,
+                                 self.config.engine, self.config.certify, reference=fleet.starts[flying])
+                if again.feasible and (not outbound.feasible or _certified(again, self.config)):
+                    outbound = again
+            if outbound.feasible and not _certified(outbound, self.config):
+                gap = outbound.certificate.max_relative_gap if outbound.certificate is not None else math.nan
+                self.notes.append(f"outbound: not certified an equilibrium (largest relative gap {gap:.1%}, twice "
+                                  "the budget tried)")
             if outbound.feasible:
                 model = CostModel.from_scenario(leg_scenario(scenario, flying, fleet.starts[flying], firsts, "outbound",
                                                              fleet.starts[flying]))

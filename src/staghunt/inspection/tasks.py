@@ -20,7 +20,7 @@ import numpy as np
 from staghunt.acquisition.segments import CapturePlan, CaptureSegment
 from staghunt.task.objectives import Inspection, Objective
 
-__all__ = ["Fleet", "Task", "Way", "make_tasks", "window_of"]
+__all__ = ["Fleet", "Task", "Way", "check_capable", "make_tasks", "window_of"]
 
 @dataclass(frozen=True, eq=False)
 class Way:
@@ -111,3 +111,13 @@ def window_of(task: Task) -> tuple[float, float]:
     if task.window is None:
         return 0.0, math.inf
     return task.window[0], task.window[1] - task.duration
+
+
+def check_capable(tasks: list[Task]) -> None:
+    """Every task has a UAV that can fly it, else a :class:`~staghunt.errors.FieldError`."""
+    from staghunt.errors import FieldError
+
+    for t in tasks:
+        if not t.uavs:
+            raise FieldError(f"objectives: {t.objective}: no UAV carries camera {t.segment.camera!r} with a gimbal "
+                             "that reaches its pitch", "objectives")
