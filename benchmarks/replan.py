@@ -50,7 +50,7 @@ HERE = Path(__file__).resolve().parent
 
 def _reference(scenario: Any, waypoints: np.ndarray) -> Any:
     from staghunt.costs import to_absolute
-    from staghunt.flight.reference import Reference, timed_path
+    from staghunt.trajectory.quintic import Reference, timed_path
 
     g = scenario.world.terrain
     pts = np.concatenate([to_absolute(g, scenario.starts()[:, None]), to_absolute(g, waypoints),

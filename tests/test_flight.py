@@ -13,8 +13,8 @@ import pytest
 
 from staghunt import load_scenario
 from staghunt.flight import FlightStatus, FlyConfig, fly
-from staghunt.flight.reference import Reference, stop_piece, timed_path
-from staghunt.flight.safety import moving_clearance, point_polygon_distance, separations
+from staghunt.trajectory.quintic import Reference, stop_piece, timed_path
+from staghunt.safety.measure import moving_clearance, point_polygon_distance, separations
 from staghunt.flight.vehicles import DrydenGust
 from staghunt.scenario import ScenarioError
 from staghunt.scenario.dynamics import load_events
@@ -113,7 +113,7 @@ def test_stop_is_continuous_synchronised_and_comes_to_rest(brake):
 def test_braking_stop_is_shorter_than_the_smooth_one():
     """The emergency warp stops in v^2 / (2 a (1 - ramp)) against 1.5 v^2 / (2 a): hand-computed
     on the warp itself (tau(T) = T / 2 for both, T = v / (a (1 - ramp)) against 1.5 v / a)."""
-    from staghunt.flight.reference import BRAKE_RAMP, brake_warp
+    from staghunt.trajectory.quintic import BRAKE_RAMP, brake_warp
 
     u = np.linspace(0.0, 1.0, 2001)
     tau, d1, d2 = brake_warp(u)

@@ -20,7 +20,7 @@ LAYERS: list[set[str]] = [
     {"task"},  # team, formation, objectives and payloads
     {"scenario", "geo"},  # the problem as given; the site frame
     {"costs"},
-    {"checks", "solvers", "acquisition"},  # acquisition: capture plans, triggering and coverage
+    {"checks", "solvers", "acquisition", "safety"},  # acquisition: capture plans, triggering and coverage; safety: the one judge
     {"engine", "trajectory"},  # engines run the solvers' problems; timing of checked paths
     {"budget", "result"},
     {"io"},  # files in and out

@@ -14,8 +14,8 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from staghunt.costs import to_absolute
-from staghunt.flight.reference import Reference
-from staghunt.flight.safety import moving_clearance, separations, static_clearance
+from staghunt.trajectory.quintic import Reference
+from staghunt.safety.measure import moving_clearance, separations, static_clearance
 from staghunt.scenario import Scenario
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics, max_motion_speed, motion_names

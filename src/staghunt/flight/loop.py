@@ -26,10 +26,10 @@ from staghunt.checks import check_inside_site
 from staghunt.costs import CostModel
 from staghunt.engine import Engine, side_by_side
 from staghunt.flight.aside import start as start_worker
-from staghunt.flight.reference import Reference
+from staghunt.trajectory.quintic import Reference
 from staghunt.flight.known import check_piece, swept_obstacles
 from staghunt.flight.replan import FlyConfig, ReplanRecord, Replanner, offline_plan
-from staghunt.flight.safety import moving_clearance, separations, static_clearance
+from staghunt.safety.measure import moving_clearance, separations, static_clearance
 from staghunt.flight.vehicles import DrydenGust, SimulatedTeam
 from staghunt.inputs import check_waypoints
 from staghunt.io.result_json import read_result

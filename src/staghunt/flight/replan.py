@@ -14,7 +14,7 @@ acceleration: the splice is continuous in all three) it
    free waypoints) and runs the best-response rounds
    (:func:`staghunt.solvers.game.best_response_rounds`, ``repair``: a warm plan cut by the new
    obstacle is first repaired reply by reply);
-3. times the new paths from the switch state (:func:`~staghunt.flight.reference.timed_path`)
+3. times the new paths from the switch state (:func:`~staghunt.trajectory.quintic.timed_path`)
    and checks them *in time*: clearance to the obstacles known, separation, and the known
    motions at their true positions; a new conflict with a motion adds its window (step 1) and
    the team solves again, up to ``attempts`` times;
@@ -24,7 +24,7 @@ From a moving state the same is solved from rest after a synchronised stop, side
 two cores (or only if the moving one fails, on one), and flown if the moving one fails; a
 moving solve that ends infeasible is tried again only if the plan from rest does not pass. If
 neither gives a plan that passes, the team stops: a synchronised stop to hover
-(:func:`~staghunt.flight.reference.stop_piece`), after which it re-plans with
+(:func:`~staghunt.trajectory.quintic.stop_piece`), after which it re-plans with
 ``stop_budget_factor`` times the budget.
 """
 
@@ -54,8 +54,8 @@ from staghunt.flight.known import (
     swept_obstacles,
     to_xyh,
 )
-from staghunt.flight.reference import Piece, Reference, stop_piece, timed_path
-from staghunt.flight.safety import static_clearance
+from staghunt.trajectory.quintic import Piece, Reference, stop_piece, timed_path
+from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.game import best_response_rounds
 from staghunt.solvers.local import LocalSearch, local_pass
@@ -695,7 +695,7 @@ class Replanner:
         """The fallback: a synchronised stop at the switch time within ``max_acceleration``; if
         that stop (along the current paths) would come closer than the hard clearance to
         something known, an emergency stop at once (``t_now``) with the braking warp
-        (:func:`~staghunt.flight.reference.brake_warp`) at the first of
+        (:func:`~staghunt.trajectory.quintic.brake_warp`) at the first of
         :data:`EMERGENCY_FACTORS` times the acceleration that passes the in-time check, or else
         the stop that keeps the most clearance. Returns the reference and ``"stop"`` /
         ``"emergency stop"``."""

@@ -16,7 +16,7 @@ Times are seconds after take-off; positions are in the site frame (m). Two known
 learns of an appeared obstacle only when a UAV comes within the :class:`Sensing` range of it.
 
 Sound offline treatment of known motions (docs/model.md, "A site that changes"): plans are
-checked *in time* against the true positions (:func:`staghunt.flight.safety.moving_clearance`), and a conflict is
+checked *in time* against the true positions (:func:`staghunt.safety.measure.moving_clearance`), and a conflict is
 removed by re-planning with the obstacle's **swept volume over the conflict's time window**
 (:meth:`Dynamics.swept`) as static obstacles.
 """
