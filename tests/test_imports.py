@@ -155,3 +155,31 @@ def test_planning_leaves_the_simulator_unloaded():
             "from staghunt.missions import export_result, FORMATS\n"
             "assert export_result.__module__ == 'staghunt.missions.export' and len(FORMATS) == 7\n")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def module_graph(package: str) -> dict[str, set[str]]:
+    """``{module: modules of the same package it imports}`` for the modules of ``staghunt.<package>``,
+    top-level and deferred imports alike (relative imports resolved)."""
+    graph: dict[str, set[str]] = defaultdict(set)
+    base = ROOT / package
+    for path in base.rglob("*.py"):
+        module = ".".join(("staghunt", package, *path.relative_to(base).with_suffix("").parts)).removesuffix(".__init__")
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names: list[str] = []
+            if isinstance(node, ast.Import):
+                names = [a.name for a in node.names]
+            elif isinstance(node, ast.ImportFrom) and node.module and node.level == 0:
+                names = [node.module] + [f"{node.module}.{a.name}" for a in node.names]
+            prefix = f"staghunt.{package}."
+            for name in names:
+                if name.startswith(prefix) and (base / Path(*name[len(prefix):].split("."))).with_suffix(".py").exists():
+                    if name != module:
+                        graph[module].add(name)
+    return graph
+
+
+def test_no_import_cycle_between_the_modules_of_the_flight_room():
+    """The flight room's parts import down, never round (flight/aside.py took its solve
+    function by name instead of importing the re-planner that imports it)."""
+    for package in ("flight", "safety", "trajectory"):
+        assert cycles(module_graph(package)) == [], package

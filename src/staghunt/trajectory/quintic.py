@@ -314,10 +314,13 @@ def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bo
     if isinstance(base, Piece) and base.kind == "stop":  # already stopping: keep that stop
         return base
     last = end_time(base)
-    t = np.linspace(t_s, max(last, t_s), max(2, math.ceil((last - t_s) / CHECK_STEP_S) + 1))
+    peak = 1.0 / (1.0 - BRAKE_RAMP) if brake else 1.5  # peak deceleration x T / v
+    v0 = float(np.linalg.norm(base.state(np.array([t_s]))[1], axis=-1).max())
+    # the stop flies the base up to T / 2 on (tau(T) - t_s = T / 2 for both warps): its speed there
+    reach = min(last, t_s + 0.5 * peak * max(v0, 1.0) / (MARGIN * limits.max_acceleration) + 1.0)
+    t = np.linspace(t_s, max(reach, t_s), max(2, math.ceil((reach - t_s) / CHECK_STEP_S) + 1))
     s = base.state(t)
     v = float(np.linalg.norm(s[1], axis=-1).max())
-    peak = 1.0 / (1.0 - BRAKE_RAMP) if brake else 1.5  # peak deceleration x T / v
     T = max(0.5, peak * v / (MARGIN * limits.max_acceleration))
     if isinstance(base, Piece):
         knots, points = base.knots, base.points

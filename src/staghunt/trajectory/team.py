@@ -72,3 +72,43 @@ class RowTeam:
                 done[id(part)] = part.state(t)
             out[:, n] = done[id(part)][:, row]
         return out
+
+
+@dataclass(frozen=True, eq=False)
+class Track:
+    """One UAV's reference as it flies it: ``segments`` ``(start, trajectory, row)`` in time
+    order, each flown from its start until the next one's (a :class:`TeamTrajectory` of one
+    UAV). A new plan or a hold is one more segment (:meth:`then`)."""
+
+    segments: tuple[tuple[float, TeamTrajectory, int], ...]
+
+    @property
+    def n_uavs(self) -> int:
+        return 1
+
+    @property
+    def span(self) -> tuple[np.ndarray, np.ndarray]:
+        first, last = self.segments[0], self.segments[-1]
+        return np.array([first[1].span[0][first[2]]]), np.array([max(last[0], float(last[1].span[1][last[2]]))])
+
+    def then(self, start: float, traj: TeamTrajectory, row: int) -> "Track":
+        """This track with ``row`` of ``traj`` flown from ``start`` on (what came after is dropped)."""
+        keep = tuple(s for s in self.segments if s[0] < start)
+        return Track(keep + ((float(start), traj, int(row)),))
+
+    def segment_at(self, t: float) -> tuple[float, TeamTrajectory, int]:
+        for s in reversed(self.segments):
+            if t >= s[0]:
+                return s
+        return self.segments[0]
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        starts = np.array([s[0] for s in self.segments])
+        idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.segments) - 1)
+        out = np.zeros((4, 1, len(t), 3))
+        for i in np.unique(idx):
+            sel = idx == i
+            _, traj, row = self.segments[i]
+            out[:, :, sel] = traj.state(t[sel])[:, row:row + 1]
+        return out
