@@ -312,6 +312,7 @@ def test_documented_and_example_events_files_load(tmp_path):
     scenario = load_scenario("scenario2")
     doc = load_events(f, scenario)
     assert len(doc.events) == 3 and len(doc.moving) == 1 and len(doc.jibs) == 1
+    assert (doc.link.delay, doc.link.jitter, doc.link.loss) == (0.1, 0.03, 0.01)
     example = load_events(root / "examples" / "events_popup.toml", scenario)
     assert example.events[0].time == 6.0 and example.jibs[0].name == "crane 1 jib"
 

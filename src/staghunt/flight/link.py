@@ -34,8 +34,9 @@ GROUND = -1
 
 
 class HoldReason(str, Enum):
-    """Why a UAV holds on its own: it heard nothing for ``plan_timeout`` (``TIMEOUT``), a
-    heartbeat named a plan it never got (``MISSED``), or its reflex braked (``REFLEX``)."""
+    """Why a UAV holds on its own: it heard nothing for ``plan_timeout`` (``TIMEOUT``), a newer
+    plan started that it did not take, lost, late or refused (``MISSED``), or its reflex braked
+    (``REFLEX``)."""
 
     TIMEOUT = "timeout"
     MISSED = "missed plan"

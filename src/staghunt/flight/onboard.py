@@ -6,9 +6,10 @@ acknowledged; the UAV switches to it at its start. It refuses (and says why) a p
 with a path and arrives after its start, or whose start lies more than :data:`START_TOLERANCE`
 from where it will be. The old plan stays valid until then (docs/model.md, section 8).
 
-It holds where it is (a stop along its own track at ``max_acceleration``) when it hears
-nothing from the ground station for ``plan_timeout``, or when a heartbeat names a newer plan
-that has started without reaching it. Its reflex checks, every :data:`REFLEX_PERIOD`, whether
+It holds where it is (a stop along its own track) when it hears nothing from the ground
+station for ``plan_timeout`` (at ``max_acceleration``), or when a newer plan has started that
+it did not take (lost, late or refused: its team-mates may fly it; braking harder, the old
+plan may lead into what the new one avoids). Its reflex checks, every :data:`REFLEX_PERIOD`, whether
 its reference would, within the time its braking stop needs, come closer than the required
 clearance to an obstacle its own sensor saw, or within ``d_s`` of a team-mate that holds (a
 neighbour's reserved volume, from the team-mates' beacons), closing in; if so it brakes

@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from staghunt.flight.config import FlyConfig
-from staghunt.flight.link import Ack, Heartbeat, HoldReason, PlanMessage, Telemetry
+from staghunt.flight.link import Ack, Heartbeat, PlanMessage, Telemetry
 from staghunt.flight.onboard import hold_piece
 from staghunt.flight.records import Cause, ReplanRecord, ReplanStatus
 from staghunt.flight.replan import Replanner, Start
@@ -316,7 +316,3 @@ class GroundStation:
         if self.stopped_at >= 0:
             until = max(until, self.stopped_at + cfg.retry_interval * (cfg.retries_after_stop + 1) + cfg.hold)
         return until
-
-    @property
-    def holds(self) -> list[HoldReason]:
-        return [tel.hold[1] for tel in self.telemetry if tel is not None and tel.hold is not None]
