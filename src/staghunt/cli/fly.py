@@ -83,26 +83,18 @@ def cmd_fly(args: argparse.Namespace) -> int:
     """fly a plan in closed loop: simulated multirotors, sensing, re-planning in flight
 
     Plan SCENARIO (or take the plan of RESULT.json), make it sound against the site's known motions,
-<<<<<<< HEAD
-    and fly it with simulated multirotors (rotorpy, SE(3) controller) at 100 Hz; the planner
-    receives the UAVs' states at 10 Hz, senses obstacles that appear, predicts conflicts with moving
-    ones, and re-solves the game in flight (warm-started, certified). Writes DIR/flight.csv,
-    replans.json, flight.json (metrics), figures, flight.gif and replay.html (an offline 3-D
-    replay). Events: docs/scenario-format.md. An inspection (objectives in the scenario or
-    --objectives FILE, or an inspection.json) is planned and flown with its cameras: the task layer
-    re-allocates the work when a UAV is lost, an objective is added or an obstacle appears; it
-    writes flight.csv, captures.csv, coverage.json, flight.json, coverage.png and replay.html
-    (with the photos' footprints).
-=======
-    and fly it with simulated multirotors (rotorpy, SE(3) controller) at 100 Hz; the ground
+    and fly it with simulated multirotors (the scenario's airframe, rotorpy's SE(3) controller) at 100 Hz; the ground
     station receives the UAVs' states at 10 Hz over a radio link (delay, jitter, loss), learns of
     obstacles they sense, predicts conflicts with moving ones, and re-solves the game in flight
     (warm-started, certified, within a deadline, and every second over a receding horizon) while
     the simulated world goes on; each UAV holds on its own when it hears nothing, and its reflex
     brakes before a sensed obstacle. Writes DIR/flight.csv, replans.json, flight.json (the
     verdict: every breach of a margin, which UAV, where and when), figures, flight.gif and
-    replay.html (an offline 3-D replay). Events: docs/scenario-format.md.
->>>>>>> 53c4d3c (flight: the closed loop in real time, from small parts: a sensor, the radio link (delay, jitter, loss, outages; [link] in scenarios and events files), what each UAV decides on board (plans taken only in time and from where it is, acknowledged; holds on timeout or a missed plan; a reflex that brakes before a sensed obstacle or a holding neighbour), the ground station with tick(t, observations) (triggers, a re-plan's result held back for its measured or fixed latency while the world goes on, a deadline, late plans dropped for the fallback, plan copies, heartbeats, commits, a receding horizon at 1 Hz pre-empted by events), re-plans from the measured state, fallbacks in flight/fallback.py; the certify-and-improve loop and deadline-aware rounds in solvers/improve.py; statuses and causes as enums; the flight verdict by the one judge (contact: unsafe, exit 5; breach: exit 4); aside no longer imports replan; tests for the late re-plan, the lost plan, the reflex, the breach, the receding horizon; benchmark episodes saved as JSON)
+    replay.html (an offline 3-D replay). Events: docs/scenario-format.md. An inspection (objectives
+    in the scenario or --objectives FILE, or an inspection.json) is planned and flown with its
+    cameras: the task layer re-allocates the work when a UAV is lost, an objective is added or an
+    obstacle appears; it writes flight.csv, captures.csv, coverage.json, flight.json,
+    coverage.png and replay.html (with the photos' footprints).
     """
     from staghunt.flight import FlyConfig, check_flight, fly  # the simulator: only for this command
 
