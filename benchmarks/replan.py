@@ -13,7 +13,7 @@ different code or settings compare episode by episode.
 
 Every episode is a :func:`staghunt.fly` run with the default settings: re-plans take the wall
 time they really take while the simulated world goes on (``--latency measured``; a number
-fixes it), within the deadline (0.2 s for 3 UAVs, 0.7 s for 8), the receding horizon at 1 Hz,
+fixes it), within the deadline (0.2 s for 3 UAVs, 1 s for 8), the receding horizon at 1 Hz,
 the radio link of ``--link-*`` (delay, jitter, loss) between the ground station and the UAVs.
 ``--jobs 2`` flies two episodes side by side, one per core: each re-plan then has one core,
 and its measured latency, and so the flight, depends on how busy the machine is (the load
@@ -221,7 +221,9 @@ def main() -> int:
     ap.add_argument("--link-loss", type=float, default=0.01)
     ap.add_argument("--latency", default="measured", help="'measured' (default) or a fixed number of seconds")
     ap.add_argument("--tag", default="", help="results/replan_TAG.json and .md")
-    ap.add_argument("--rebuild", action="store_true", help="build the episodes again (results/replan_episodes.json)")
+    ap.add_argument("--rebuild", action="store_true", help="build the episodes again")
+    ap.add_argument("--episodes-file", type=Path, default=EPISODES, help="the saved episodes (default "
+                    "results/replan_episodes.json; built there if missing)")
     ap.add_argument("--out", type=Path, default=HERE / "results")
     ap.add_argument("--summarise", type=Path, metavar="JSON", help="only print the table of a saved run")
     ap.add_argument("--solve-only", action="store_true",
@@ -240,12 +242,12 @@ def main() -> int:
     counts = {"scenario2": max(args.episodes, args.wind_episodes), "site_wedge": args.wedge_episodes}
     have: list[dict[str, Any]] = []
     plans: dict[str, Any] = {}
-    if EPISODES.exists() and not args.rebuild:
-        have, plans = replan_episodes.load(EPISODES)
+    if args.episodes_file.exists() and not args.rebuild:
+        have, plans = replan_episodes.load(args.episodes_file)
     if any(sum(e["kind"] == k for e in have) < n for k, n in counts.items()):
         print("building the episodes", file=sys.stderr)
         have, plans = replan_episodes.build({k: max(n, sum(e["kind"] == k for e in have)) for k, n in counts.items()})
-        replan_episodes.save(EPISODES, have, plans)
+        replan_episodes.save(args.episodes_file, have, plans)
     pick = [e for e in have if (e["kind"] == "scenario2" and e["episode"] < counts["scenario2"])
             or (e["kind"] == "site_wedge" and e["episode"] < args.wedge_episodes)]
     if args.solve_only:

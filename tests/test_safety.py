@@ -138,3 +138,19 @@ def test_nearest_mates_measures_by_the_bodies():
     d, mate = nearest_mates(pos, np.array([0.5, 2.0, 0.5]))
     assert mate[:, 0].tolist() == [1, 0, 0]  # UAV 0's nearest surface: the big UAV 1 (gap 2.5 < 4.5)
     assert d[:, 0] == pytest.approx([5.0, 5.0, 5.5])
+
+
+def test_a_uav_out_of_the_team_is_judged_against_nothing():
+    """A UAV lost and landed (``active`` false from then on) sits on the ground next to a
+    team-mate's path: neither its ground contact nor the team-mate passing it is a breach."""
+    sc = _open()
+    t = np.linspace(0.0, 2.0, 3)
+    landed = np.array([[10.0, 10.0, 20.0], [10.0, 10.0, 0.2], [10.0, 10.0, 0.2]])
+    passing = np.array([[30.0, 10.0, 20.0], [20.0, 10.0, 3.0], [10.5, 10.0, 3.0]])
+    pos = np.stack([landed, passing])
+    r = np.array([0.5, 0.5])
+    v = judge(Scene.fixed(sc.world), r, t, pos, Margins.required(sc), ["A", "B"])
+    assert v.contact and {b.kind for b in v.breaches} == {BreachKind.GROUND, BreachKind.SEPARATION}
+    on = np.array([[True, False, False], [True, True, True]])
+    v = judge(Scene.fixed(sc.world), r, t, pos, Margins.required(sc), ["A", "B"], active=on)
+    assert v.safe and v.min_separation == pytest.approx([20.0, 20.0]) and v.min_ground[0] > 18.0  # at t = 0 only

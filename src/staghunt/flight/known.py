@@ -15,16 +15,20 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from staghunt.costs import to_absolute
+from staghunt.flight.link import HoldReason
+from staghunt.flight.onboard import hold_piece
 from staghunt.safety import Margins, Scene, Verdict, judge
 from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario
 from staghunt.trajectory.quintic import Piece, Reference
-from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time
+from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time, row_of
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics, max_motion_speed
 
 CHECK_STEP_S = 0.05
 """Time step of the acceptance's samples (s)."""
+STRAGGLER_STEP_S = 0.1
+"""Time step of the commit rule's check (:meth:`Acceptance.stragglers`; UAVs apart by metres)."""
 CURVE_SLACK = 0.2
 """Metres a re-plan's game keeps beyond the clearance its acceptance asks: the timed curve
 leaves the planned polyline by up to about 0.15 m between waypoints (3 m sub-legs), and a best
@@ -133,6 +137,34 @@ class Acceptance:
         closing = (sc.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2 + motion_extra
         return judge(scene, np.array([u.radius for u in sc.team]), t, pos, margins or self.margins,
                      [u.name for u in sc.team], motion_margin=closing)
+
+    def stragglers(self, new: TeamTrajectory, base: TeamTrajectory, t_s: float, learn: float) -> list[str]:
+        """The commit rule's check (RMADER's, for one planner): a UAV that misses the plan
+        ``new`` (starting at ``t_s``) flies its row of ``base`` for ``learn`` seconds more (until
+        a heartbeat tells it), then holds, braking (:func:`~staghunt.flight.onboard.hold_piece`),
+        while its team-mates fly ``new``. Returns the problems: a team-mate's new path within the
+        required separation of a straggler's, for each UAV as the straggler."""
+        sc = self.scenario
+        r = np.array([u.radius for u in sc.team])
+        names = [u.name for u in sc.team]
+        t_h = t_s + learn
+        problems: list[str] = []
+        for j in range(sc.n_uavs):
+            track = Track(((t_s, *row_of(base, j)),))
+            hold = hold_piece(track, t_h, sc.vehicle, HoldReason.MISSED)
+            late = track.then(t_h, hold, 0)
+            t = np.arange(t_s, hold.arrival + STRAGGLER_STEP_S, STRAGGLER_STEP_S)
+            mine = late.state(t)[0][0]  # (T, 3)
+            theirs = new.state(t)[0]  # (N, T, 3)
+            d = np.linalg.norm(theirs - mine[None], axis=-1)  # (N, T)
+            d[j] = np.inf
+            need = sc.costs.safe_distance + r + r[j]
+            bad = d <= need[:, None]
+            if bad.any():
+                i, k = np.unravel_index(np.argmax(bad), bad.shape)
+                problems.append(f"if {names[j]} missed the plan, {names[i]} would come {d[i, k]:.2f} m from it at "
+                                f"t = {t[k]:.1f} s (required more than {need[i]:.2f} m)")
+        return problems
 
     def problem_margins(self, clearance: float) -> Margins:
         """The acceptance's margins for a re-plan whose game keeps ``clearance`` to obstacles

@@ -64,10 +64,10 @@ RELAX_KEEP = 0.8
 """A UAV that rests closer than the re-plan's clearance to an obstacle (an emergency stop short of
 a pop-up) re-plans with the clearance relaxed to this share of what it has: its paths may
 leave sideways, not come closer (the solver's plans lie on their constraints)."""
-GAME_SHARE = 0.5
+GAME_SHARE = 0.4
 """Share of the deadline the game's rounds may take; the rest is for timing, acceptance and
 the certificate."""
-RESERVE_SHARE = 0.1
+RESERVE_SHARE = 0.15
 """Share of the deadline kept free at its end: no certificate starts that its running estimate
 says would end in it."""
 CERTIFICATE_PRIOR = 0.25
@@ -97,7 +97,8 @@ class Start:
         ``(N,)``: ``base`` at ``t_s`` plus the measured departure from it at ``t_m`` (tracking
         error, noise), acceleration ``base``'s. Returns it and the largest departure (m)."""
         s = base.state(np.array([t_s]))[:, :, 0]  # (4, N, 3)
-        then = np.stack([base.state(np.array([t]))[:, n, 0] for n, t in enumerate(t_m)], axis=1)
+        times, at = np.unique(t_m, return_inverse=True)
+        then = base.state(times)[:, np.arange(len(t_m)), at.ravel()]  # (4, N, 3): UAV n at its t_m
         off_p, off_v = pos - then[0], vel - then[1]
         return cls(t_s, base, s[0] + off_p, s[1] + off_v, s[2]), float(np.linalg.norm(off_p, axis=-1).max())
 
@@ -158,6 +159,9 @@ class Replanner:
         self.acceptance = Acceptance(scenario, self.known, dyn, config.allowance)
         self.fallback = Fallback(self.acceptance, config.conflict_horizon)
         self.certificate_s = 0.0  # running estimate of a certificate's wall time
+        # how long a UAV that missed a plan flies on before a heartbeat tells it (a tick and the
+        # link's worst delay; the station sets it)
+        self.learn_s = 1.0 / dyn.sensing.rate + (config.link or dyn.link).worst_delay
         self._certifier, self._workers = side_by_side(engine)
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
         if self._workers > 1:
@@ -331,6 +335,8 @@ class Replanner:
         margins = self.acceptance.problem_margins(sub.costs.min_clearance)
         verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
         problems = verdict.problems([u.name for u in sc.team])
+        if not problems and head is None and self.config.straggler_check:
+            problems = self.acceptance.stragglers(new, start.base, start.t_s, self.learn_s)
         return (None, problems, list(verdict.windows)) if problems else (new, [], list(verdict.windows))
 
     def _lead_in(self, start: Start) -> np.ndarray | None:

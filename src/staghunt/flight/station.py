@@ -254,7 +254,7 @@ class GroundStation:
                                       Deadline.after(D) if cfg.measured else Deadline(),
                                       cfg.replan_horizon if receding else 0.0, fallback=not receding)
         plan, status = solved.plan, solved.status
-        if receding and plan is not None and not self._better(plan, base):
+        if receding and plan is not None and not (solved.certified and self._better(plan, base)):
             plan, status = None, ReplanStatus.KEPT
         wall = time.perf_counter() - wall0
         release = self._step(t + (wall if cfg.measured else float(cfg.latency)))
@@ -280,7 +280,7 @@ class GroundStation:
         self._after(t, trigger, status)
 
     def _better(self, plan: Reference, base: RowTeam) -> bool:
-        """A receding-horizon plan is sent only if it arrives at least 0.5 s sooner."""
+        """A receding-horizon plan (certified) is sent only if it arrives at least 0.5 s sooner."""
         return plan.arrival <= end_time(base) - 0.5
 
     def _after(self, t: float, trigger: Trigger, status: ReplanStatus) -> None:

@@ -226,15 +226,19 @@ def _worst(kind: BreachKind, excess: np.ndarray, contact: np.ndarray, value: np.
 
 
 def judge(scene: Scene, radius: np.ndarray, times: np.ndarray, pos: np.ndarray, margins: Margins,
-          names: list[str] | None = None, motion_margin: float = 0.0, keep: bool = False) -> Verdict:
+          names: list[str] | None = None, motion_margin: float = 0.0, keep: bool = False,
+          active: np.ndarray | None = None) -> Verdict:
     """Judge positions ``pos`` ``(N, T, 3)`` (absolute site) at ``times`` ``(T,)`` of UAVs of
     body ``radius`` ``(N,)`` against ``scene`` with ``margins`` (module docstring).
     ``motion_margin`` (m) is added to the clearance required from a moving obstacle (the
     distance it and a UAV can close between two samples); ``names`` name the UAVs in the
-    breaches (default ``UAV 1``...); ``keep``: keep the clearances ``(N, T)`` in the verdict."""
+    breaches (default ``UAV 1``...); ``keep``: keep the clearances ``(N, T)`` in the verdict;
+    ``active`` ``(N, T)``: the instants each UAV counts (``False``: it has left the team, landed
+    where it was lost; it is then judged against nothing and nobody against it)."""
     times = np.asarray(times, dtype=float)
     pos = np.asarray(pos, dtype=float)
     N, T = pos.shape[:2]
+    on = np.ones((N, T), dtype=bool) if active is None else np.asarray(active, dtype=bool)
     r = np.asarray(radius, dtype=float)
     names = names or [f"UAV {n + 1}" for n in range(N)]
     # clearance to fixed obstacles, epoch by epoch
@@ -247,7 +251,7 @@ def judge(scene: Scene, radius: np.ndarray, times: np.ndarray, pos: np.ndarray, 
         e = scene.epochs[i]
         sel = idx == i
         c, w = static_nearest(e.cylinders, e.prisms, pos[:, sel], r)
-        clear[:, sel] = c
+        clear[:, sel] = np.where(on[:, sel], c, np.inf)
         label[:, sel] = np.where(w >= 0, w + len(labels), -1)
         labels += [s.name for s in e.cylinders] + [s.name for s in e.prisms]
     breaches = _worst(BreachKind.CLEARANCE, clear - margins.clearance, clear < 0, clear, np.array(margins.clearance),
@@ -255,6 +259,7 @@ def judge(scene: Scene, radius: np.ndarray, times: np.ndarray, pos: np.ndarray, 
     windows: list[tuple[str, float, float]] = []
     if scene.motions is not None:
         mc, which = moving_clearance(scene.motions, pos, times, r)
+        mc = np.where(on, mc, np.inf)
         need = margins.clearance + motion_margin
         moving = motion_names(scene.motions)
         bad = mc < need
@@ -283,16 +288,16 @@ def judge(scene: Scene, radius: np.ndarray, times: np.ndarray, pos: np.ndarray, 
     mate = np.full((N, T), -1, dtype=int)
     step = max(1, BLOCK // max(1, N * N))
     for a in range(0, T, step):
-        dist[:, a:a + step], mate[:, a:a + step] = nearest_mates(pos[:, a:a + step], r)
+        dist[:, a:a + step], mate[:, a:a + step] = nearest_mates(pos[:, a:a + step], r, on[:, a:a + step])
     touch = r[:, None] + np.where(mate >= 0, r[np.maximum(mate, 0)], 0.0)
     need_sep = margins.separation + touch
     breaches += _worst(BreachKind.SEPARATION, np.nextafter(dist - need_sep, -np.inf), dist < touch, dist, need_sep,
                        times, pos, lambda n, k: names[mate[n, k]])
     # ground and ceiling
-    ground = pos[..., 2] - scene.terrain.height(pos[..., 0], pos[..., 1]) - r[:, None]
+    ground = np.where(on, pos[..., 2] - scene.terrain.height(pos[..., 0], pos[..., 1]) - r[:, None], np.inf)
     breaches += _worst(BreachKind.GROUND, ground - margins.ground, ground < 0, ground, np.array(margins.ground),
                        times, pos, lambda n, k: "ground")
-    head = scene.ceiling - pos[..., 2]
+    head = np.where(on, scene.ceiling - pos[..., 2], np.inf)
     breaches += _worst(BreachKind.CEILING, head - margins.ceiling, np.zeros_like(head, dtype=bool), head,
                        np.array(margins.ceiling), times, pos, lambda n, k: "ceiling")
     order = sorted(breaches, key=lambda b: (b.severity is not Severity.CONTACT, b.since, b.uav))

@@ -123,10 +123,12 @@ def separations(pos: np.ndarray) -> np.ndarray:
     return np.sqrt(d2.min(axis=1))  # the root of the least square: the least distance, as a norm gives it
 
 
-def nearest_mates(pos: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def nearest_mates(pos: np.ndarray, radius: np.ndarray, active: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
     """Each UAV's nearest team-mate at the same instant, by the gap between their bodies:
     ``(N, T)`` the centre distance to the team-mate whose surface is nearest (``inf`` alone)
-    and ``(N, T)`` that team-mate's index (``-1`` alone). ``radius``: ``(N,)``."""
+    and ``(N, T)`` that team-mate's index (``-1`` alone). ``radius``: ``(N,)``; ``active``
+    ``(N, T)``: the instants a UAV counts (not: no team-mate for anybody)."""
     N, T = pos.shape[:2]
     if N < 2:
         return np.full((N, T), np.inf), np.full((N, T), -1, dtype=int)
@@ -135,5 +137,9 @@ def nearest_mates(pos: np.ndarray, radius: np.ndarray) -> tuple[np.ndarray, np.n
     r = np.asarray(radius, dtype=float)
     gap = d - (r[:, None] + r[None, :])[..., None]
     gap[np.arange(N), np.arange(N)] = np.inf
+    if active is not None:
+        gap = np.where(active[:, None] & active[None, :], gap, np.inf)
     mate = np.argmin(gap, axis=1)  # (N, T)
-    return np.take_along_axis(d, mate[:, None], axis=1)[:, 0], mate
+    near = np.take_along_axis(d, mate[:, None], axis=1)[:, 0]
+    alone = ~np.isfinite(np.take_along_axis(gap, mate[:, None], axis=1)[:, 0])
+    return np.where(alone, np.inf, near), np.where(alone, -1, mate)

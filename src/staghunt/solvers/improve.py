@@ -119,7 +119,8 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     ``azimuth``) and improve it while the certificate finds better replies.
 
     With ``rounds`` > 0, every UAV first makes the certificate's own local search, in passes
-    until none gains more than epsilon; the gains are kept if ``accept`` flies the plan. Then,
+    until none gains more than epsilon (or the deadline passes); the gains are kept if
+    ``accept`` flies the plan. Then,
     while a certificate finds better replies and ``rounds`` allow: every reply in turn
     (largest gap first) that still gains more than epsilon with those already kept and keeps
     the plan feasible; if that keeps more than one and ``accept`` flies the plan, certify it;
@@ -144,6 +145,8 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
         team, J = plan.copy(), judge(model, plan[None]).total[0]
         last: tuple[LocalSearch, ...] = ()
         for _ in range(LOCAL_PASSES):
+            if deadline.passed:
+                break
             done = local_pass(model, team, J, local, eps, judge, workers=workers)
             team, J, last = done.plan, done.costs, done.searches
             out.spent += done.evaluations

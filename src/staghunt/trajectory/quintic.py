@@ -51,6 +51,8 @@ COARSE_STEP_S = 0.1
 well, for a fifth of the samples; a schedule is accepted on the :data:`CHECK_STEP_S` grid only."""
 MARGIN = 0.98
 """Peaks are kept below this share of the limits (the grid may miss a peak between samples)."""
+CACHED = 8
+"""Answers of :meth:`Piece.state` kept per piece."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -99,8 +101,22 @@ class Piece:
 
     def state(self, t: np.ndarray) -> np.ndarray:
         """``(4, N, T, 3)``: position, velocity, acceleration and jerk at times ``t`` ``(T,)``
-        (a stop's jerk is reported as 0: the controllers used need no more than acceleration)."""
+        (a stop's jerk is reported as 0: the controllers used need no more than acceleration).
+        Read-only: the last few answers are kept, since a team flying rows of one plan (every
+        UAV its own track) asks the same times once per UAV."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        cache: dict[bytes, np.ndarray] = self.__dict__.setdefault("_answers", {})
+        key = t.tobytes()
+        if key in cache:
+            return cache[key]
+        out = self._state(t)
+        out.setflags(write=False)
+        if len(cache) >= CACHED:
+            cache.pop(next(iter(cache)))
+        cache[key] = out
+        return out
+
+    def _state(self, t: np.ndarray) -> np.ndarray:
         if self.kind == "path":
             assert self.spline is not None
             tc = np.clip(t, self.t0, self.t1)
@@ -110,7 +126,9 @@ class Piece:
             return out
         assert self.base is not None
         tau, d1, d2 = self.warp(t)
-        last = end_time(self.base)
+        last = self.__dict__.get("_last")
+        if last is None:
+            last = self.__dict__["_last"] = end_time(self.base)
         tau = np.minimum(tau, last)
         b = self.base.state(tau)
         at_end = (tau >= last)[None, :, None]

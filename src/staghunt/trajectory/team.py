@@ -40,6 +40,14 @@ class TeamTrajectory(Protocol):
         ...
 
 
+def row_of(traj: TeamTrajectory, n: int) -> tuple[TeamTrajectory, int]:
+    """The trajectory and row UAV ``n`` of ``traj`` flies, out of any :class:`RowTeam` (so that
+    one UAV is evaluated without its team-mates)."""
+    while isinstance(traj, RowTeam):
+        traj, n = traj.parts[n], traj.rows[n]
+    return traj, n
+
+
 def end_time(traj: TeamTrajectory) -> float:
     """When the last UAV of ``traj`` comes to rest (s)."""
     return float(np.max(traj.span[1]))
