@@ -107,6 +107,30 @@ def warm_plan(scenario: Scenario, base: TeamTrajectory, t_s: float, K: int,
     return np.clip(to_xyh(scenario, out), scenario.world.bounds.lower, scenario.world.bounds.upper)
 
 
+@dataclass(frozen=True, eq=False)
+class Start:
+    """Where a re-plan starts: at ``t_s``, after ``base`` (what each UAV flies until then), in
+    the state ``pos``, ``vel``, ``acc`` ``(N, 3)`` (absolute site, m, m/s, m/s^2)."""
+
+    t_s: float
+    base: TeamTrajectory
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+
+    @classmethod
+    def measured(cls, base: TeamTrajectory, t_s: float, t_m: np.ndarray, pos: np.ndarray,
+                 vel: np.ndarray) -> tuple["Start", float]:
+        """The start from each UAV's measured position and velocity ``(N, 3)`` at times ``t_m``
+        ``(N,)``: ``base`` at ``t_s`` plus the measured departure from it at ``t_m`` (tracking
+        error, noise), acceleration ``base``'s. Returns it and the largest departure (m)."""
+        s = base.state(np.array([t_s]))[:, :, 0]  # (4, N, 3)
+        times, at = np.unique(t_m, return_inverse=True)
+        then = base.state(times)[:, np.arange(len(t_m)), at.ravel()]  # (4, N, 3): UAV n at its t_m
+        off_p, off_v = pos - then[0], vel - then[1]
+        return cls(t_s, base, s[0] + off_p, s[1] + off_v, s[2]), float(np.linalg.norm(off_p, axis=-1).max())
+
+
 @dataclass(frozen=True)
 class Acceptance:
     """The planner's acceptance of a plan: the one safety judge (:func:`staghunt.safety.judge`)

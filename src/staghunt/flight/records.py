@@ -1,11 +1,17 @@
 """What a flight records of its re-plans: why each was made (:class:`Cause`), what came out
-(:class:`ReplanStatus`) and the figures of one re-plan (:class:`ReplanRecord`)."""
+(:class:`ReplanStatus`), what a solve decided (:class:`Solved`) and the figures of one re-plan
+(:class:`ReplanRecord`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import Enum
 from typing import Any
+
+import numpy as np
+
+from staghunt.scenario import Scenario
+from staghunt.trajectory.quintic import Reference
 
 
 class Cause(str, Enum):
@@ -58,7 +64,9 @@ class ReplanRecord:
     ``verdict``, ``certified``: an epsilon-equilibrium). ``state_error_m``: the largest
     distance between a UAV's measured state carried to the switch time and its believed
     reference there (tracking error, sensor noise and delay). ``version``: the plan's number
-    (0: none sent); ``committed``: every UAV acknowledged it before it started."""
+    (0: none sent); ``committed``: every UAV acknowledged it before it started;
+    ``certified_after_s``: a plan sent uncertified at its deadline is certified by the station's
+    next job, this long (wall time) after it was sent (0: certified before)."""
 
     time: float
     switch_time: float
@@ -80,6 +88,7 @@ class ReplanRecord:
     late: bool = False
     version: int = 0
     committed: bool = False
+    certified_after_s: float = 0.0
 
     @property
     def solved(self) -> bool:
@@ -104,4 +113,26 @@ class ReplanRecord:
             "certified": self.certified, "verdict": self.verdict, "problems": list(self.problems),
             "windows": [{"obstacle": w[0], "from": round(w[1], 3), "to": round(w[2], 3)} for w in self.windows],
             "state_error_m": self.state_error_m, "version": self.version, "committed": self.committed,
+            "certified_after_s": self.certified_after_s,
         }
+
+
+@dataclass(frozen=True)
+class Solved:
+    """What :meth:`Replanner.solve` decided: the ``plan`` to send (``None``: keep the current
+    one), its ``status``, the path ``evaluations`` and ``attempts`` spent, its certificate
+    (``nash_gaps``, ``certified``, ``verdict``), the ``problems`` that stopped it and the
+    conflict ``windows`` solved around."""
+
+    plan: Reference | None
+    status: ReplanStatus
+    evaluations: int = 0
+    attempts: int = 0
+    nash_gaps: tuple[float, ...] = ()
+    certified: bool = False
+    verdict: str = ""
+    problems: tuple[str, ...] = ()
+    windows: tuple[tuple[str, float, float], ...] = ()
+    game: tuple[Scenario, np.ndarray, float] | None = None
+    """The game the plan is a solution of (its problem, the ``(N, K, 3)`` plan, the heading
+    half-width), to certify the plan later if no certificate fit before the deadline."""

@@ -41,9 +41,9 @@ from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.flight import aside
 from staghunt.flight.config import FlyConfig
 from staghunt.flight.fallback import Fallback, stopping
-from staghunt.flight.known import (TIMING_SLACK, Acceptance, KnownWorld, covers, sub_scenario, swept_obstacles, to_xyh,
-                                   warm_plan)
-from staghunt.flight.records import ReplanStatus
+from staghunt.flight.known import (TIMING_SLACK, Acceptance, KnownWorld, Start, covers, sub_scenario, swept_obstacles,
+                                   to_xyh, warm_plan)
+from staghunt.flight.records import ReplanStatus, Solved
 from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
@@ -77,48 +77,6 @@ REST_SHARE = 0.85
 TAIL_STEP_S = 0.5
 """Seconds between the points a receding-horizon re-plan keeps of the current plan beyond its
 horizon."""
-
-
-@dataclass(frozen=True, eq=False)
-class Start:
-    """Where a re-plan starts: at ``t_s``, after ``base`` (what each UAV flies until then), in
-    the state ``pos``, ``vel``, ``acc`` ``(N, 3)`` (absolute site, m, m/s, m/s^2)."""
-
-    t_s: float
-    base: TeamTrajectory
-    pos: np.ndarray
-    vel: np.ndarray
-    acc: np.ndarray
-
-    @classmethod
-    def measured(cls, base: TeamTrajectory, t_s: float, t_m: np.ndarray, pos: np.ndarray,
-                 vel: np.ndarray) -> tuple["Start", float]:
-        """The start from each UAV's measured position and velocity ``(N, 3)`` at times ``t_m``
-        ``(N,)``: ``base`` at ``t_s`` plus the measured departure from it at ``t_m`` (tracking
-        error, noise), acceleration ``base``'s. Returns it and the largest departure (m)."""
-        s = base.state(np.array([t_s]))[:, :, 0]  # (4, N, 3)
-        times, at = np.unique(t_m, return_inverse=True)
-        then = base.state(times)[:, np.arange(len(t_m)), at.ravel()]  # (4, N, 3): UAV n at its t_m
-        off_p, off_v = pos - then[0], vel - then[1]
-        return cls(t_s, base, s[0] + off_p, s[1] + off_v, s[2]), float(np.linalg.norm(off_p, axis=-1).max())
-
-
-@dataclass(frozen=True)
-class Solved:
-    """What :meth:`Replanner.solve` decided: the ``plan`` to send (``None``: keep the current
-    one), its ``status``, the path ``evaluations`` and ``attempts`` spent, its certificate
-    (``nash_gaps``, ``certified``, ``verdict``), the ``problems`` that stopped it and the
-    conflict ``windows`` solved around."""
-
-    plan: Reference | None
-    status: ReplanStatus
-    evaluations: int = 0
-    attempts: int = 0
-    nash_gaps: tuple[float, ...] = ()
-    certified: bool = False
-    verdict: str = ""
-    problems: tuple[str, ...] = ()
-    windows: tuple[tuple[str, float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -242,9 +200,21 @@ class Replanner:
         cert = done.certificate
         if cert is None:
             return Solved(done.flown, status, spent + done.spent, tries, verdict="not certified: " + "; ".join(done.notes),
-                          windows=used)
+                          windows=used, game=(chosen.sub, done.plan, chosen.azimuth))
         return Solved(done.flown, status, spent + done.spent, tries, tuple(float(u.relative) for u in cert.uavs),
                       cert.is_equilibrium, cert.verdict, (), used)
+
+    def certify(self, game: tuple[Scenario, np.ndarray, float]) -> tuple[tuple[float, ...], bool, str, int]:
+        """The certificate of a plan sent uncertified (``Solved.game``), made later, with no
+        improvement (the plan is flying): its Nash gaps, whether it is an epsilon-equilibrium,
+        the verdict and the path evaluations spent."""
+        sub, plan, azimuth = game
+        done = certify_and_improve(sub, plan, None, lambda p: None, self.search, self.config.certify_options(), 0,
+                                   self.rng, self._certifier.run_swarm, self._certifier.evaluate, self._solo.evaluate,
+                                   azimuth, self._workers)
+        cert = done.certificate
+        assert cert is not None
+        return tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, done.spent
 
     @staticmethod
     def _span(deadline: Deadline) -> float:

@@ -10,7 +10,8 @@ the team hovers after a stop, and the receding horizon's periodic re-plan with n
 A re-plan is a job (:meth:`GroundStation._replan`): it is computed at the tick, but its result
 leaves the station only after its latency (measured wall time, or the fixed one) rounded up to
 a simulation step; meanwhile the simulated world goes on and the station takes no other job,
-but an event pre-empts a receding-horizon job. The plan starts at the trigger plus the
+but an event pre-empts a receding-horizon job. A plan sent uncertified (no certificate fit
+before its deadline) is certified by the next job (:meth:`GroundStation._certify`). The plan starts at the trigger plus the
 deadline plus the link's worst delay; a plan that would still start before it reached the
 UAVs is dropped for the fallback (the current plan if it stays safe, else a stop). Every plan
 goes out twice, is sent again each tick until acknowledged while it can still arrive in time,
@@ -87,6 +88,7 @@ class GroundStation:
         self.handled_holds: dict[int, float] = {}
         self.verified: set[int] = set()
         self.fresh: list[str] = []
+        self.to_certify: tuple[int, Any] | None = None
         self.stops, self.stopped_at, self.retries = 0, -1.0, 0
         self.gave_up: float | None = None
         self.message = ""
@@ -158,11 +160,14 @@ class GroundStation:
         if job is None or job.cause is Cause.RECEDING:  # an event pre-empts a receding-horizon job
             trigger = self._trigger(t, job is not None)
         if trigger is not None and job is not None:
-            self.records[job.record] = replace(self.records[job.record], status=ReplanStatus.KEPT,
-                                               problems=("pre-empted by " + trigger.text,))
+            if job.record >= 0:
+                self.records[job.record] = replace(self.records[job.record], status=ReplanStatus.KEPT,
+                                                   problems=("pre-empted by " + trigger.text,))
             self.job = None
         if trigger is not None:
             self._replan(t, trigger)
+        elif job is None and self.to_certify is not None:
+            self._certify(t)
         out: list[tuple[int, Any]] = [(n, Heartbeat(*self.released)) for n in range(self.n)]
         p = self.plans.get(self.released[0])
         if p is not None and (t + self.worst < p.splice or p.stop_first):
@@ -277,7 +282,25 @@ class GroundStation:
             solved.verdict if status.solved else "", solved.problems, solved.windows, error, late,
             message.version if message is not None else 0))
         self.job = _Job(release, message, len(self.records) - 1, trigger.cause)
+        self.to_certify = None
+        if message is not None and status.solved and not solved.certified and solved.game is not None:
+            self.to_certify = (len(self.records) - 1, solved.game)
         self._after(t, trigger, status)
+
+    def _certify(self, t: float) -> None:
+        """The certificate of the plan last sent uncertified (its deadline left no time for
+        one), made now as the station's next job: the plan is flying, the record says how it
+        stands and how long after it was sent the certificate came."""
+        index, game = self.to_certify
+        self.to_certify = None
+        wall0 = time.perf_counter()
+        gaps, certified, verdict, spent = self.replanner.certify(game)
+        wall = time.perf_counter() - wall0
+        r = self.records[index]
+        self.records[index] = replace(r, nash_gaps=gaps, certified=certified, verdict=verdict,
+                                      evaluations=r.evaluations + spent, certified_after_s=r.latency_s + wall)
+        release = self._step(t + (wall if self.config.measured else float(self.config.latency)))
+        self.job = _Job(release, None, -1, Cause.RECEDING)  # busy meanwhile; an event pre-empts it
 
     def _better(self, plan: Reference, base: RowTeam) -> bool:
         """A receding-horizon plan (certified) is sent only if it arrives at least 0.5 s sooner."""
