@@ -77,7 +77,8 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
         "replans": [{"cause": x.cause.value, "status": x.status.value, "latency_s": x.latency_s,
                      "deadline_s": x.deadline_s, "late": x.late, "overran": x.overran, "certified": x.certified,
                      "solved": x.solved, "committed": x.committed, "sent": x.version > 0,
-                     "receding": x.cause is Cause.RECEDING, "max_gap": max(x.nash_gaps, default=None)}
+                     "receding": x.cause is Cause.RECEDING, "max_gap": max(x.nash_gaps, default=None),
+                     "trigger": x.trigger, "time": x.time}
                     for x in r.replans],
         "tracking_rms_m": float(np.sqrt(np.mean(r.tracking_rms ** 2))),
         "tracking_max_m": float(r.tracking_max.max()),

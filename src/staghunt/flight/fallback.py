@@ -70,8 +70,8 @@ class Fallback:
         """A synchronised stop at ``t_s`` within ``max_acceleration``; if that stop would come
         closer than the acceptance's margins to something known, an emergency stop from
         ``t_soon`` (the earliest the UAVs can get it) with the braking warp at the first of
-        :data:`EMERGENCY_FACTORS` times the acceleration that passes, or else the stop that
-        keeps the most clearance."""
+        :data:`EMERGENCY_FACTORS` times the acceleration that passes, or else the stop with no
+        contact (with an obstacle or a team-mate) that keeps the most clearance."""
         limits = self.acceptance.scenario.vehicle
         options = []
         tries = [(ReplanStatus.STOP, t_s, limits)] + [
@@ -83,8 +83,8 @@ class Fallback:
             verdict = self.acceptance.check(plan, t0, piece.t1 + 1.0)
             if verdict.safe:
                 return plan, status
-            options.append((verdict.least_clearance, plan, status))
-        _, plan, status = max(options, key=lambda o: o[0])
+            options.append(((not verdict.contact, verdict.least_clearance), plan, status))
+        _, plan, status = max(options, key=lambda o: o[0])  # no contact first, then the most clearance
         return plan, status
 
     def stop_short(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Piece, bool]:

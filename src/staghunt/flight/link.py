@@ -53,6 +53,9 @@ class PlanMessage:
     plan: Reference
     splice: float
     uavs: tuple[int, ...]
+    holds: tuple[float | None, ...] = ()
+    """For every UAV, the start of the hold the station knew of when it made the plan (``None``:
+    none): a UAV holding on its own takes only a plan made knowing its hold."""
 
     @property
     def stop_first(self) -> bool:

@@ -3,8 +3,9 @@
 A UAV (:class:`Onboard`) flies its :class:`~staghunt.trajectory.team.Track`. A plan message
 that reaches it in time, whose start agrees with where the UAV will be, becomes pending and is
 acknowledged; the UAV switches to it at its start. It refuses (and says why) a plan that opens
-with a path and arrives after its start, or whose start lies more than :data:`START_TOLERANCE`
-from where it will be. The old plan stays valid until then (docs/model.md, section 8).
+with a path and arrives after its start, whose start lies more than :data:`START_TOLERANCE`
+from where it will be, or, while it holds on its own, one made before the station knew of its
+hold. The old plan stays valid until then (docs/model.md, section 8).
 
 It holds where it is (a stop along its own track) when it hears nothing from the ground
 station for ``plan_timeout`` (at ``max_acceleration``), or when a newer plan has started that
@@ -32,9 +33,10 @@ from staghunt.trajectory.quintic import BRAKE_RAMP, Reference, stop_piece
 from staghunt.trajectory.team import Track
 from staghunt.world import Cylinder, Prism
 
-START_TOLERANCE = 0.5
+START_TOLERANCE = 1.0
 """Metres a plan's start may lie from where the UAV expects to be at it (the same tracking
-error carried forward by both sides; sensor noise, measurement delay)."""
+error carried forward by both sides; sensor noise, measurement delay, and the tracking error
+changing meanwhile: a hard braking manoeuvre lags its reference by tenths of a metre)."""
 REFLEX_PERIOD = 0.05
 """Seconds between two checks of the reflex."""
 REFLEX_FACTOR = 3.0
@@ -111,6 +113,10 @@ class Onboard:
             return
         if t > message.splice and not message.stop_first:
             ack.append(Ack(self.n, message.version, False, "late"))
+            return
+        knew = message.holds[self.n] if len(message.holds) > self.n else None
+        if self.hold is not None and knew != self.hold[0]:  # made before the station knew it holds
+            ack.append(Ack(self.n, message.version, False, "hold"))
             return
         at = max(message.splice, t)
         expect = self.track.state(np.array([at]))[0][0, 0] + (pos - self.track.state(np.array([t]))[0][0, 0])

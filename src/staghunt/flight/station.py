@@ -274,7 +274,7 @@ class GroundStation:
         message = None
         if plan is not None:
             self.version += 1
-            message = PlanMessage(self.version, plan, plan.pieces[0].t0, tuple(range(self.n)))
+            message = PlanMessage(self.version, plan, plan.pieces[0].t0, tuple(range(self.n)), tuple(self.held))
         self.records.append(ReplanRecord(
             t, plan.pieces[0].t0 if plan is not None else t_s, trigger.cause, trigger.text, status, wall, D,
             "measured" if cfg.measured else "fixed", release, solved.evaluations, solved.attempts,
