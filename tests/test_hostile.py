@@ -1268,11 +1268,11 @@ def test_fly_settings_that_cannot_certify_a_replan_are_refused_before_any_work(t
     """``[solver] c1 = c2 = 0``: the offline plan needs no certificate, but every re-plan's does,
     and its search could not move: refused before the offline plan, not in the first re-plan."""
     pytest.importorskip("rotorpy")
-    import staghunt.flight.loop as loop
+    import staghunt.flight.offline as offline
 
     text = Path(FLY_SMALL).read_text().replace("[solver]\n", "[solver]\nc1 = 0.0\nc2 = 0.0\n")
     scenario = write(tmp_path, "s.toml", text)
-    monkeypatch.setattr(loop, "plan", lambda *a, **k: pytest.fail("planned before the check"))
+    monkeypatch.setattr(offline, "plan", lambda *a, **k: pytest.fail("planned before the check"))
     out = tmp_path / "flight"
     refused(capsys, "fly", str(scenario), "--out", str(out), *FLY_TINY,
             expect=r"re-plan settings: c1 and c2 are both 0")

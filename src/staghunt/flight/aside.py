@@ -8,9 +8,11 @@ plan from rest takes nothing from the moving solve.
 
 One worker process per Python process (:func:`rest_worker`), started on first use and kept
 (spawned, not forked: the parent has OpenMP threads), with its kernels loaded from Numba's
-cache. A solve in it is cancelled through a shared event, checked after every reply. Its
-result is the same as in a thread: the solve's generator is drawn by the parent and sent
-along, and the worker's engine is the compiled one on one thread.
+cache and the module named by :func:`start` imported. A solve in it is cancelled through a
+shared event, checked after every reply. Its result is the same as in a thread: the solve's
+generator is drawn by the parent and sent along, and the worker's engine is the compiled one
+on one thread. This module imports nothing of the planner: the function it runs arrives
+pickled by name (:meth:`RestWorker.submit`).
 """
 
 from __future__ import annotations
@@ -21,7 +23,7 @@ import signal
 import threading
 import warnings
 from concurrent.futures import Future, ProcessPoolExecutor
-from typing import Any
+from typing import Any, Callable
 
 _cancel: Any = None
 """The worker's cancel event (set in the worker by :func:`_start`)."""
@@ -36,41 +38,38 @@ def _start(cancel: Any) -> None:
     warnings.simplefilter("ignore")
 
 
-def _warm() -> bool:
-    """Import the planner and load the kernels (run once in the worker, before any solve)."""
-    from staghunt.engine import get_engine
-    from staghunt.flight import replan  # noqa: F401 (imported now rather than at the first solve)
+def _warm(preload: str) -> bool:
+    """Import ``preload`` and load the kernels (run once in the worker, before any solve)."""
+    import importlib
 
+    from staghunt.engine import get_engine
+
+    importlib.import_module(preload)  # imported now rather than at the first solve
     get_engine("numba", threads=1).prepare()
     return True
 
 
-def _from_rest(state: dict[str, Any], args: tuple[Any, ...]) -> Any:
-    """:meth:`Replanner.from_rest` of a re-planner rebuilt from ``state`` (its scenario,
-    changing world, settings and what it knows), on the compiled engine pinned to one thread."""
-    from staghunt.engine import get_engine
-    from staghunt.flight.replan import Replanner
-
-    engine = get_engine("numba", threads=1)
-    planner = Replanner.rebuilt(state, engine)
-    return planner.from_rest(*args, engine=engine, cancel=_cancel)
+def _call(fn: Callable[..., Any], state: Any, args: tuple[Any, ...]) -> Any:
+    """``fn(state, args, cancel)`` in the worker, with the worker's cancel event."""
+    return fn(state, args, _cancel)
 
 
 class RestWorker:
-    """The worker process: :meth:`submit` a re-planner's plan from rest, :meth:`cancel` it."""
+    """The worker process: :meth:`submit` a solve, :meth:`cancel` it."""
 
-    def __init__(self) -> None:
+    def __init__(self, preload: str) -> None:
         context = multiprocessing.get_context("spawn")
         self._event = context.Event()
         self._pool = ProcessPoolExecutor(1, mp_context=context, initializer=_start, initargs=(self._event,))
-        self.ready: Future[bool] = self._pool.submit(_warm)
+        self.ready: Future[bool] = self._pool.submit(_warm, preload)
         self.solves = 0
 
-    def submit(self, state: dict[str, Any], args: tuple[Any, ...]) -> Future[Any]:
-        """Solve ``Replanner.rebuilt(state).from_rest(*args)`` in the worker."""
+    def submit(self, fn: Callable[..., Any], state: Any, args: tuple[Any, ...]) -> Future[Any]:
+        """Run ``fn(state, args, cancel)`` in the worker (``fn`` a module-level function, sent
+        by name; ``cancel`` the event :meth:`cancel` sets)."""
         self._event.clear()
         self.solves += 1
-        return self._pool.submit(_from_rest, state, args)
+        return self._pool.submit(_call, fn, state, args)
 
     def cancel(self) -> None:
         self._event.set()
@@ -86,14 +85,14 @@ _failed = False
 _lock = threading.Lock()
 
 
-def start() -> RestWorker | None:
-    """Start the process's worker if it is not running yet, without waiting for it (``None``
-    if no process can be started here)."""
+def start(preload: str) -> RestWorker | None:
+    """Start the process's worker if it is not running yet, without waiting for it, importing
+    the module ``preload`` in it (``None`` if no process can be started here)."""
     global _worker, _failed
     with _lock:
         if _worker is None and not _failed:
             try:
-                _worker = RestWorker()
+                _worker = RestWorker(preload)
                 # Stopped at exit by multiprocessing's finalizers, which run in every process
                 # (atexit does not in one that multiprocessing started, a pool's worker flying
                 # episodes: there the worker, never told to stop, kept the process alive for
@@ -105,12 +104,13 @@ def start() -> RestWorker | None:
         return None if _failed else _worker
 
 
-def rest_worker(wait: bool = False) -> RestWorker | None:
-    """The worker, if it has loaded its kernels (``wait``: start it and wait until it has,
-    a few seconds the first time); else ``None``, and the caller solves in a thread (the
-    same result). A worker that failed to start, or died, is not used again."""
+def rest_worker(wait: str | None = None) -> RestWorker | None:
+    """The worker, if it has loaded its kernels (``wait``: a module to preload; start the
+    worker and wait until it has, a few seconds the first time); else ``None``, and the
+    caller solves in a thread (the same result). A worker that failed to start, or died, is
+    not used again."""
     global _failed
-    worker = start() if wait else _worker
+    worker = start(wait) if wait else _worker
     if worker is None or _failed or not (wait or worker.ready.done()):
         return None
     try:

@@ -14,9 +14,9 @@ coverage.
 - Decisions (:mod:`staghunt.inspection.decision`): events are read at the planner's ticks (10 Hz);
   the re-allocation's measured time (at least one tick) is the latency, the old timeline flies
   meanwhile. A lost UAV lands straight down at 1 m/s where it is.
-- The flight is judged on the vehicles: separation at the same instant, clearance to the site's
-  obstacles (those that appeared, from then on), ground and ceiling; contact and margin breaches
-  are reported apart.
+- The flight is judged on the vehicles by the one safety judge (:mod:`staghunt.safety`):
+  separation at the same instant, clearance to the site's obstacles (those that appeared, from
+  then on), ground and ceiling; contact and margin breaches are reported apart.
 """
 
 from __future__ import annotations
@@ -29,7 +29,6 @@ from typing import Any, Callable
 
 import numpy as np
 
-from staghunt.acquisition.clearance import point_clearance
 from staghunt.acquisition.coverage import Photos, measure_inspection
 from staghunt.inspection.decision import Decision, WorkLog, reallocate
 from staghunt.inspection.planner import InspectConfig
@@ -328,56 +327,24 @@ def _changed_world(scenario: Scenario, e: Event) -> Scenario:
 
 def _judge(scenario: Scenario, final: Scenario, A: np.ndarray, T: np.ndarray, lost: dict, appeared: list[Event]
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[str]]:
-    """Least separation and clearance per UAV in the simulated flight, and the problems: contact
-    (separation under twice the body radius, clearance under 0) or a breach of a required margin
-    (separation at most ``d_s + 2 r``, clearance under the scenario's minimum), ground, ceiling."""
-    n = A.shape[0]
+    """Least separation and clearance per UAV in the simulated flight, and the problems, by the
+    one safety judge (:func:`staghunt.safety.judge`): the site as it truly was at each step (an
+    obstacle that appeared counts from its time on), the scenario's required margins; contact
+    (a body touched an obstacle, a team-mate or the ground) or a breach of a required margin
+    (clearance, separation, ground, ceiling). A lost UAV counts until it has landed."""
+    from staghunt.safety import Margins, Scene, judge
+    from staghunt.world.dynamic import Dynamics
+
     names = [u.name for u in scenario.team]
     radius = np.array([u.radius for u in scenario.team])
-    limit = scenario.costs.safe_distance + 2 * radius
-    sep = np.full(n, np.inf)
-    problems: list[str] = []
-    on_ground = np.zeros((n, len(T)), dtype=bool)
+    on = np.ones(A.shape[:2], dtype=bool)
     for k, (t_lost, at) in lost.items():
         g = float(np.asarray(scenario.world.terrain.height(at[:1], at[1:2]))[0])
-        on_ground[k] = (T > t_lost) & (A[k, :, 2] - g < 0.5)
-    for a in range(n):
-        for b in range(a + 1, n):
-            d = np.linalg.norm(A[a] - A[b], axis=-1)
-            d = np.where(on_ground[a] | on_ground[b], np.inf, d)
-            m = float(d.min())
-            sep[a], sep[b] = min(sep[a], m), min(sep[b], m)
-            i = int(np.argmin(d))
-            if m <= 2 * max(radius[a], radius[b]):
-                problems.append(f"contact: {names[a]} and {names[b]} {m:.2f} m apart at t = {T[i]:.1f} s")
-            elif m <= max(limit[a], limit[b]):
-                problems.append(f"separation breach: {names[a]} and {names[b]} {m:.2f} m apart at t = {T[i]:.1f} s "
-                                f"(required more than {max(limit[a], limit[b]):g} m)")
-    stride = max(1, int(round(0.1 * SIM_RATE)))
-    clear = np.full(n, np.inf)
-    required = float(scenario.costs.min_clearance)
-    for k in range(n):
-        pts = A[k, ::stride]
-        ts = T[::stride]
-        gap = point_clearance(scenario, pts, float(radius[k]))
-        for e in appeared:  # an obstacle that appeared counts from its time on
-            w = _changed_world(replace(scenario, world=replace(scenario.world, cylinders=(), prisms=())), e)
-            extra = point_clearance(w, pts, float(radius[k]))
-            extra = np.where(ts >= e.time, extra, np.inf)
-            gap = np.minimum(gap, extra)
-        gap = np.where(on_ground[k, ::stride], np.inf, gap)
-        clear[k] = float(gap.min())
-        i = int(np.argmin(gap))
-        if clear[k] < 0:
-            problems.append(f"contact: {names[k]} touches an obstacle at t = {ts[i]:.1f} s ({clear[k]:.2f} m)")
-        elif clear[k] < required - 1e-9:
-            problems.append(f"clearance breach: {names[k]} {clear[k]:.2f} m from an obstacle at t = {ts[i]:.1f} s "
-                            f"(required {required:g} m)")
-        h = pts[:, 2] - np.asarray(scenario.world.terrain.height(pts[:, 0], pts[:, 1]), dtype=float)
-        low = (h < 0) & ~on_ground[k, ::stride]
-        if low.any():
-            problems.append(f"contact: {names[k]} below the ground at t = {ts[int(np.argmax(low))]:.1f} s")
-    return sep, limit, clear, problems
+        on[k] = ~((T > t_lost) & (A[k, :, 2] - g < 0.5))
+    verdict = judge(Scene.true(scenario.world, Dynamics(events=tuple(appeared))), radius, T, A,
+                    Margins.required(scenario), names, active=on)
+    return (verdict.min_separation, scenario.costs.safe_distance + 2 * radius, verdict.min_clearance,
+            verdict.problems(names))
 
 
 def flight_dict(flight: InspectionFlight, max_samples: int = 1500) -> dict[str, Any]:

@@ -1,9 +1,10 @@
-"""What the planner knows of the changing site, and the checks of a reference in time.
+"""What the planner knows of the changing site, the problem a re-plan solves, and the planner's
+acceptance of a plan by the one safety judge.
 
 The planner's view (:class:`KnownWorld`: the static obstacles, the sensed ones, those known to be
 gone), the re-plan's problem built from it (:func:`sub_scenario`, :func:`swept_obstacles`, the
-warm start :func:`remaining_plan`), and :func:`check_piece`, the in-time check every new piece
-passes before it is flown (docs/model.md, section 8). Shapes: ``N`` UAVs, ``K`` free waypoints.
+warm start :func:`warm_plan`), and :class:`Acceptance`, the check every plan passes before it is
+sent (docs/model.md, section 8). Shapes: ``N`` UAVs, ``K`` free waypoints.
 """
 
 from __future__ import annotations
@@ -14,14 +15,30 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from staghunt.costs import to_absolute
-from staghunt.flight.reference import Reference
-from staghunt.flight.safety import moving_clearance, separations, static_clearance
+from staghunt.flight.link import HoldReason
+from staghunt.flight.onboard import hold_piece
+from staghunt.safety import Margins, Scene, Verdict, judge
+from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario
+from staghunt.trajectory.quintic import Piece, Reference
+from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time, row_of
 from staghunt.world import Cylinder, Prism
-from staghunt.world.dynamic import Dynamics, max_motion_speed, motion_names
+from staghunt.world.dynamic import Dynamics, max_motion_speed
 
 CHECK_STEP_S = 0.05
-"""Time step of the in-time checks of a new piece and of the horizon (s)."""
+"""Time step of the acceptance's samples (s)."""
+STRAGGLER_STEP_S = 0.1
+"""Time step of the commit rule's check (:meth:`Acceptance.stragglers`; UAVs apart by metres)."""
+CURVE_SLACK = 0.2
+"""Metres a re-plan's game keeps beyond the clearance its acceptance asks: the timed curve
+leaves the planned polyline by up to about 0.15 m between waypoints (3 m sub-legs), and a best
+reply lies on its constraints."""
+TIMING_SLACK = 0.1
+"""Metres the game's separation limit exceeds the acceptance's: the timed curve leaves the
+polyline between waypoints by centimetres, so a best reply at exactly the game's limit (an
+equilibrium lies on its constraints) would otherwise fail the check by a few centimetres
+(measured: 4.44-4.49 m against 4.5 m) and could not be flown."""
+
 
 @dataclass
 class KnownWorld:
@@ -50,75 +67,140 @@ def to_xyh(scenario: Scenario, absolute: np.ndarray) -> np.ndarray:
 
 
 def sub_scenario(scenario: Scenario, starts_xyh: np.ndarray, cylinders: tuple[Cylinder, ...],
-                 prisms: tuple[Prism, ...]) -> Scenario:
-    """``scenario`` with new starts ``(N, 3)`` ``(x, y, h)`` and the given obstacles (goals,
-    formation, weights and settings unchanged)."""
-    team = tuple(replace(u, start=tuple(float(v) for v in s)) for u, s in zip(scenario.team, starts_xyh))
+                 prisms: tuple[Prism, ...], goals_xyh: np.ndarray | None = None) -> Scenario:
+    """``scenario`` with new starts ``(N, 3)`` ``(x, y, h)`` (and goals, if given) and the given
+    obstacles (formation, weights and settings unchanged)."""
+    goals = [u.goal for u in scenario.team] if goals_xyh is None else [tuple(float(v) for v in g) for g in goals_xyh]
+    team = tuple(replace(u, start=tuple(float(v) for v in s), goal=g)
+                 for u, s, g in zip(scenario.team, starts_xyh, goals))
     world = replace(scenario.world, cylinders=cylinders, prisms=prisms)
     return replace(scenario, team=team, world=world)
 
 
-def remaining_plan(scenario: Scenario, ref: Reference, t_s: float, K: int) -> np.ndarray:
-    """``(N, K, 3)`` ``(x, y, h)``: the rest of the current plan after ``t_s``, resampled at
-    ``K`` evenly spaced times of the path being flown (the warm start of a re-plan)."""
-    piece = ref.piece_at(t_s)
-    base = piece.base if piece.kind == "stop" and piece.base is not None else piece
-    tau = piece.warp(np.array([t_s]))[0][0] if piece.kind == "stop" else t_s
-    tau = min(max(tau, base.t0), base.t1)
-    times = tau + (base.t1 - tau) * np.arange(1, K + 1) / (K + 1)
-    pos = base.state(times)[0]  # (N, K, 3)
-    return np.clip(to_xyh(scenario, pos), scenario.world.bounds.lower, scenario.world.bounds.upper)
+def _going(traj: TeamTrajectory, t: float, row: int) -> tuple[TeamTrajectory, int, float]:
+    """Where UAV ``row`` of ``traj`` was going at ``t``: the trajectory under any stop it is
+    making there, the row in it and the time along it (a stop's warped time)."""
+    if isinstance(traj, Track):
+        _, inner, r = traj.segment_at(t)
+        return _going(inner, t, r)
+    if isinstance(traj, RowTeam):
+        return _going(traj.parts[row], t, traj.rows[row])
+    if isinstance(traj, Reference):
+        return _going(traj.piece_at(t), t, row)
+    if isinstance(traj, Piece) and traj.kind == "stop" and traj.base is not None:
+        return _going(traj.base, float(traj.warp(np.array([t]))[0][0]), row)
+    return traj, row, t
 
 
-def check_piece(scenario: Scenario, known: KnownWorld, dyn: Dynamics, piece_ref: Reference,
-                t0: float, t1: float) -> tuple[list[str], list[tuple[str, float, float]], float]:
-    """Check the reference over ``[t0, t1]`` every :data:`CHECK_STEP_S`: clearance to the
-    known obstacles (at least half the hard clearance: the rest is left for tracking error),
-    separation above ``d_s + 2 r``, height above ground, and clearance to the known motions at
-    their true positions (the hard clearance plus the distance the UAV and the obstacle can
-    close between two samples). Returns the problems, the motions' conflict windows
-    ``(name, first, last)`` and the least clearance to anything known (m)."""
-    if t1 <= t0:
-        return [], [], math.inf
-    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
-    pos = piece_ref.state(t)[0]  # (N, T, 3)
-    r = np.array([u.radius for u in scenario.team])
-    names = [u.name for u in scenario.team]
-    c = scenario.costs
-    problems: list[str] = []
-    cyl, prm = known.shapes()
-    clear = static_clearance(cyl, prm, pos, r)
-    if np.any(clear < 0.5 * c.min_clearance):
-        n, k = np.unravel_index(np.argmin(clear), clear.shape)
-        problems.append(f"{names[n]} passes {clear[n, k]:.2f} m from an obstacle at t = {t[k]:.1f} s")
-    sep = separations(pos)
-    limit = c.safe_distance + 2 * r
-    if np.any(sep <= limit[:, None]):
-        n, k = np.unravel_index(np.argmin(sep - limit[:, None]), sep.shape)
-        problems.append(f"{names[n]} comes {sep[n, k]:.2f} m from a team-mate at t = {t[k]:.1f} s")
-    h = pos[..., 2] - scenario.world.terrain.height(pos[..., 0], pos[..., 1])
-    if np.any(h < 0):
-        problems.append(f"below ground at t = {t[np.argmin(h.min(axis=0))]:.1f} s")
-    windows: list[tuple[str, float, float]] = []
-    least = float(clear.min(initial=math.inf))
-    if dyn.known_motion:
-        margin = (scenario.vehicle.max_speed + max_motion_speed(dyn)) * CHECK_STEP_S / 2
-        mc, which = moving_clearance(dyn, pos, t, r)
-        least = min(least, float(mc.min(initial=math.inf)))
-        bad = mc < c.min_clearance + margin
-        labels = motion_names(dyn)
-        for i in np.unique(which[bad]):
-            ks = np.flatnonzero((bad & (which == i)).any(axis=0))
-            windows.append((labels[i], float(t[ks[0]]), float(t[ks[-1]])))
-            problems.append(f"conflict with {labels[i]} from t = {t[ks[0]]:.1f} s to {t[ks[-1]]:.1f} s")
-    return problems, windows, least
+def warm_plan(scenario: Scenario, base: TeamTrajectory, t_s: float, K: int,
+              until: float | None = None) -> np.ndarray:
+    """``(N, K, 3)`` ``(x, y, h)``: the rest of the path each UAV of ``base`` is flying (or was,
+    before a stop) after ``t_s``, sampled at ``K`` evenly spaced times up to its end (or
+    ``until``): the warm start of a re-plan."""
+    out = np.empty((base.n_uavs, K, 3))
+    for n in range(base.n_uavs):
+        traj, row, tau = _going(base, t_s, n)
+        end = end_time(traj) if until is None else min(end_time(traj), until - t_s + tau)
+        tau = min(max(tau, float(traj.span[0][row])), max(end, tau))
+        times = tau + (max(end, tau) - tau) * np.arange(1, K + 1) / (K + 1)
+        out[n] = traj.state(times)[0][row]
+    return np.clip(to_xyh(scenario, out), scenario.world.bounds.lower, scenario.world.bounds.upper)
+
+
+@dataclass(frozen=True, eq=False)
+class Start:
+    """Where a re-plan starts: at ``t_s``, after ``base`` (what each UAV flies until then), in
+    the state ``pos``, ``vel``, ``acc`` ``(N, 3)`` (absolute site, m, m/s, m/s^2)."""
+
+    t_s: float
+    base: TeamTrajectory
+    pos: np.ndarray
+    vel: np.ndarray
+    acc: np.ndarray
+
+    @classmethod
+    def measured(cls, base: TeamTrajectory, t_s: float, t_m: np.ndarray, pos: np.ndarray,
+                 vel: np.ndarray) -> tuple["Start", float]:
+        """The start from each UAV's measured position and velocity ``(N, 3)`` at times ``t_m``
+        ``(N,)``: ``base`` at ``t_s`` plus the measured departure from it at ``t_m`` (tracking
+        error, noise), acceleration ``base``'s. Returns it and the largest departure (m)."""
+        s = base.state(np.array([t_s]))[:, :, 0]  # (4, N, 3)
+        times, at = np.unique(t_m, return_inverse=True)
+        then = base.state(times)[:, np.arange(len(t_m)), at.ravel()]  # (4, N, 3): UAV n at its t_m
+        off_p, off_v = pos - then[0], vel - then[1]
+        return cls(t_s, base, s[0] + off_p, s[1] + off_v, s[2]), float(np.linalg.norm(off_p, axis=-1).max())
+
+
+@dataclass(frozen=True)
+class Acceptance:
+    """The planner's acceptance of a plan: the one safety judge (:func:`staghunt.safety.judge`)
+    on the plan's reference sampled every :data:`CHECK_STEP_S`, against what the planner knows
+    (static and sensed obstacles, the known motions at their true positions), with the
+    scenario's required margins grown by ``allowance`` (the tracking error it leaves to the
+    vehicles); a known motion's clearance also gets the distance the UAV and the motion can
+    close between two samples."""
+
+    scenario: Scenario
+    known: KnownWorld
+    dyn: Dynamics
+    allowance: float
+
+    @property
+    def margins(self) -> Margins:
+        return Margins.required(self.scenario).grown(self.allowance)
+
+    def check(self, traj: TeamTrajectory, t0: float, t1: float, margins: Margins | None = None,
+              known: KnownWorld | None = None, motion_extra: float = 0.0) -> Verdict:
+        """Judge ``traj`` over ``[t0, t1]`` (``margins``: other margins than :attr:`margins`;
+        ``known``: another view of the site; ``motion_extra``: metres more from the known
+        motions)."""
+        sc = self.scenario
+        t = np.linspace(t0, max(t1, t0), max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+        pos = traj.state(t)[0]
+        scene = Scene.fixed(sc.world, *(known or self.known).shapes(), motions=self.dyn)
+        closing = (sc.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2 + motion_extra
+        return judge(scene, np.array([u.radius for u in sc.team]), t, pos, margins or self.margins,
+                     [u.name for u in sc.team], motion_margin=closing)
+
+    def stragglers(self, new: TeamTrajectory, base: TeamTrajectory, t_s: float, learn: float) -> list[str]:
+        """The commit rule's check (RMADER's, for one planner): a UAV that misses the plan
+        ``new`` (starting at ``t_s``) flies its row of ``base`` for ``learn`` seconds more (until
+        a heartbeat tells it), then holds, braking (:func:`~staghunt.flight.onboard.hold_piece`),
+        while its team-mates fly ``new``. Returns the problems: a team-mate's new path within the
+        required separation of a straggler's, for each UAV as the straggler."""
+        sc = self.scenario
+        r = np.array([u.radius for u in sc.team])
+        names = [u.name for u in sc.team]
+        t_h = t_s + learn
+        problems: list[str] = []
+        for j in range(sc.n_uavs):
+            track = Track(((t_s, *row_of(base, j)),))
+            hold = hold_piece(track, t_h, sc.vehicle, HoldReason.MISSED)
+            late = track.then(t_h, hold, 0)
+            t = np.arange(t_s, hold.arrival + STRAGGLER_STEP_S, STRAGGLER_STEP_S)
+            mine = late.state(t)[0][0]  # (T, 3)
+            theirs = new.state(t)[0]  # (N, T, 3)
+            d = np.linalg.norm(theirs - mine[None], axis=-1)  # (N, T)
+            d[j] = np.inf
+            need = sc.costs.safe_distance + r + r[j]
+            bad = d <= need[:, None]
+            if bad.any():
+                i, k = np.unravel_index(np.argmax(bad), bad.shape)
+                problems.append(f"if {names[j]} missed the plan, {names[i]} would come {d[i, k]:.2f} m from it at "
+                                f"t = {t[k]:.1f} s (required more than {need[i]:.2f} m)")
+        return problems
+
+    def problem_margins(self, clearance: float) -> Margins:
+        """The acceptance's margins for a re-plan whose game keeps ``clearance`` to obstacles
+        (:data:`CURVE_SLACK` less, at least 0)."""
+        return replace(self.margins, clearance=max(0.0, clearance - CURVE_SLACK))
 
 
 def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, float, float]]
                     ) -> tuple[tuple[Cylinder, ...], tuple[Prism, ...]]:
     """The swept stand-ins (:meth:`Dynamics.swept`) of the conflict ``windows`` ``(name, from,
     to)``, less any that holds a UAV's start or goal in ``scenario`` within the hard clearance:
-    the UAV is there at another time than the motion (the in-time check judges it), and a
+    the UAV is there at another time than the motion (the acceptance judges it), and a
     stand-in around an end would leave no plan at all."""
     cyl: list[Cylinder] = []
     prm: list[Prism] = []

@@ -9,9 +9,10 @@ rotorpy's SE(3) controller at ``sim_rate`` Hz), from rest at the first sample, t
 last sample for ``hold`` seconds. Nothing re-plans: the world is the scenario's static one (cylinders, prisms,
 no-fly zones, ceiling, terrain), as in the export's in-time check.
 
-The flown states are judged like the closed loop's: least separation against ``d_s + 2 r``,
-least clearance against the scenario's hard clearance, height above the ground and below the
-ceiling, and tracking error (RMS and maximum) against the reference.
+The flown states are judged by the one safety judge (:func:`staghunt.safety.judge`), with the
+closed loop's margins: separation against ``d_s + 2 r``, clearance to the obstacles and to the
+ground against the scenario's hard clearance, headroom under the ceiling; and tracking error
+(RMS and maximum) against the reference.
 """
 
 from __future__ import annotations
@@ -24,11 +25,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.interpolate import CubicHermiteSpline
 
-from staghunt.flight.safety import separations, static_clearance
 from staghunt.flight.vehicles import SimulatedTeam
+from staghunt.safety import Margins, Scene, Verdict, judge
 from staghunt.scenario import Scenario
+from staghunt.trajectory.hermite import HermiteTeam
 
 SIM_RATE = 100.0
 """Simulation rate (Hz)."""
@@ -49,7 +50,8 @@ class MissionFlight:
     - ``min_clearance``: ``(N,)`` least clearance to the obstacles; ``required_clearance``.
     - ``min_height``: ``(N,)`` least height above the ground; ``max_altitude``: ``(N,)``
       highest site ``z`` (against the ceiling).
-    - ``problems``: the limits the flight broke (empty: none); ``seconds``: wall time.
+    - ``problems``: the limits the flight broke (empty: none), from ``verdict``;
+      ``seconds``: wall time.
     """
 
     times: np.ndarray
@@ -66,6 +68,7 @@ class MissionFlight:
     problems: tuple[str, ...]
     sim_rate: float
     seconds: float
+    verdict: Verdict | None = None
 
     @property
     def safe(self) -> bool:
@@ -102,32 +105,28 @@ def fly_mission(scenario: Scenario, t: np.ndarray, pos: np.ndarray, vel: np.ndar
     (site frame, absolute) with the simulated team and judge the flight (module docstring).
     ``progress(t, t_end)`` is called about once per simulated second."""
     t0 = time.perf_counter()
-    curve = CubicHermiteSpline(t, pos, vel, axis=1)
+    curve = HermiteTeam(t, pos, vel)
     dt = 1.0 / sim_rate
     t_end = float(t[-1]) + hold
     steps = math.ceil((t_end - t[0]) / dt)
     team = SimulatedTeam(pos[:, 0], dt, None, scenario.vehicle, [u.radius for u in scenario.team])
     ticks = float(t[0]) + np.arange(steps + 1) * dt  # (S,)
-    # The reference at every step, sampled once: (4, S, N, 3) position, velocity, acceleration,
-    # jerk; after the last sample, hold its position at rest.
-    ref = np.zeros((4, steps + 1) + pos[:, 0].shape)
-    flying = ticks <= t[-1]
-    for d in range(4):
-        ref[d, flying] = np.moveaxis(curve(ticks[flying], d), 1, 0)
-    ref[0, ~flying] = pos[:, -1]
+    # The reference at every step, sampled once: (4, N, S, 3) position, velocity, acceleration,
+    # jerk; after the last sample, its position at rest.
+    ref = curve.state(ticks)
     rec_x: list[np.ndarray] = []
     per_second = max(1, round(sim_rate))
     for k in range(steps + 1):
         if k % RECORD_STEP == 0:
             rec_x.append(team.positions())
         if k < steps:
-            team.step(float(ticks[k]), ref[:, k])
+            team.step(float(ticks[k]), ref[:, :, k])
         if progress is not None and k % per_second == 0:
             progress(float(ticks[k]), t_end)
     recorded = slice(None, None, RECORD_STEP)
     times = ticks[recorded]
     actual = np.stack(rec_x, axis=1)  # (N, T, 3)
-    reference = np.moveaxis(ref[0, recorded], 0, 1)
+    reference = ref[0][:, recorded]
     return judge_mission(scenario, times, actual, reference, sim_rate, time.perf_counter() - t0)
 
 
@@ -136,29 +135,14 @@ def judge_mission(scenario: Scenario, times: np.ndarray, actual: np.ndarray, ref
     """Judge flown positions ``actual`` against ``reference`` ``(N, T, 3)`` (module docstring)."""
     world = scenario.world
     radius = np.array([u.radius for u in scenario.team])
-    limit = scenario.costs.safe_distance + 2.0 * radius
-    required = float(scenario.costs.min_clearance)
-    err = np.linalg.norm(actual - reference, axis=-1)
-    sep = separations(actual).min(axis=1)
-    clear = static_clearance(world.cylinders, world.prisms, actual, radius).min(axis=1)
-    height = (actual[..., 2] - world.terrain.height(actual[..., 0], actual[..., 1])).min(axis=1)
-    top = actual[..., 2].max(axis=1)
     names = [u.name for u in scenario.team]
-    problems = []
-    for n, name in enumerate(names):
-        if sep[n] <= limit[n]:
-            problems.append(f"in flight: {name} came within {sep[n]:.2f} m of a team-mate "
-                            f"(limit d_s + 2r = {limit[n]:g} m)")
-        if clear[n] < required:
-            problems.append(f"in flight: {name}'s clearance to an obstacle fell to {clear[n]:.2f} m "
-                            f"(required {required:g} m)")
-        if height[n] <= 0.0:
-            problems.append(f"in flight: {name} touched the ground ({height[n]:.2f} m)")
-        if top[n] > world.ceiling:
-            problems.append(f"in flight: {name} rose to {top[n]:.2f} m, above the ceiling {world.ceiling:g} m")
+    verdict = judge(Scene.fixed(world), radius, times, actual, Margins.required(scenario), names)
+    err = np.linalg.norm(actual - reference, axis=-1)
     return MissionFlight(
         times=times, actual=actual, reference=reference,
         tracking_rms=np.sqrt(np.mean(err ** 2, axis=1)), tracking_max=err.max(axis=1),
-        min_separation=sep, separation_limit=limit, min_clearance=clear, required_clearance=required,
-        min_height=height, max_altitude=top, problems=tuple(problems), sim_rate=float(sim_rate),
-        seconds=float(seconds))
+        min_separation=verdict.min_separation, separation_limit=scenario.costs.safe_distance + 2.0 * radius,
+        min_clearance=verdict.min_clearance, required_clearance=float(scenario.costs.min_clearance),
+        min_height=verdict.min_ground + radius, max_altitude=actual[..., 2].max(axis=1),
+        problems=tuple(f"in flight: {p}" for p in verdict.problems(names)), sim_rate=float(sim_rate),
+        seconds=float(seconds), verdict=verdict)

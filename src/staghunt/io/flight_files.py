@@ -1,5 +1,6 @@
 """The files of a simulated flight (``staghunt fly``): ``flight.csv``, ``replans.json``,
-``flight.json`` (the metrics), and the plain data the replay page and figures are drawn from.
+``flight.json`` (the verdict and the metrics), and the plain data the replay page and figures
+are drawn from.
 
 Every file is written atomically (complete or absent). ``flight.csv`` has one row per UAV and
 logged instant: ``t,uav,x,y,z,vx,vy,vz,ref_x,ref_y,ref_z,error`` (site frame, m, m/s; ``uav``
@@ -19,7 +20,7 @@ import numpy as np
 from staghunt.io.atomic import write_text_atomic
 from staghunt.io.result_json import encode_number, write_json_atomic
 
-FLIGHT_FORMAT = "staghunt-flight/1"
+FLIGHT_FORMAT = "staghunt-flight/2"
 
 
 def _num(v: float) -> float | str:
@@ -52,7 +53,8 @@ def flight_csv(result: Any) -> str:
 
 
 def latency_summary(records: Any) -> dict[str, Any]:
-    """p50, p95 and max of the measured re-plan latencies (s) and the share certified."""
+    """p50, p95 and max of the measured re-plan latencies (s), the overruns of the deadline, the
+    plans dropped for being late, and the share certified of the plans sent."""
     lat = np.array([r.latency_s for r in records])
     if lat.size == 0:
         return {"replans": 0}
@@ -62,50 +64,70 @@ def latency_summary(records: Any) -> dict[str, Any]:
         "latency_p50_s": float(np.percentile(lat, 50)),
         "latency_p95_s": float(np.percentile(lat, 95)),
         "latency_max_s": float(lat.max()),
-        "over_budget": int(sum(r.latency_s > r.latency_budget_s for r in records)),
+        "over_deadline": int(sum(r.overran for r in records)),
+        "late": int(sum(r.late for r in records)),
+        "sent": int(sum(r.version > 0 for r in records)),
+        "committed": int(sum(r.committed for r in records)),
         "certified": int(sum(r.certified for r in solved)),
         "solved": len(solved),
     }
 
 
 def flight_summary(result: Any) -> dict[str, Any]:
-    """``flight.json``: status, metrics per UAV and for the team, settings, the changing world."""
+    """``flight.json``: status, the verdict (every breach: which margin, which UAV, where and
+    when), metrics per UAV and for the team, settings (the latency used), the link, the
+    changing world."""
     from dataclasses import asdict
 
     from staghunt.scenario.dump import scenario_to_dict
 
     names = result.uav_names
+    v = result.verdict
     per_uav = []
     for n, name in enumerate(names):
         per_uav.append({
             "name": name,
-            "min_separation_m": _num(result.min_separation[n]),
+            "min_separation_m": _num(v.min_separation[n]),
             "separation_limit_m": _num(result.separation_limit[n]),
-            "min_clearance_m": _num(result.min_clearance[n]),
+            "min_clearance_m": _num(v.min_clearance[n]),
+            "min_ground_clearance_m": _num(v.min_ground[n]),
+            "min_headroom_m": _num(v.min_headroom[n]),
             "tracking_rms_m": _num(result.tracking_rms[n]),
             "tracking_max_m": _num(result.tracking_max[n]),
             "arrival_s": None if math.isnan(result.arrival[n]) else _num(result.arrival[n]),
         })
     extra = result.extra_time
+    config = asdict(result.config)
     return {
         "format": FLIGHT_FORMAT,
         "status": result.status.value,
+        "exit_code": result.status.exit_code,
         "message": result.message,
         "seed": result.seed,
+        "latency": "measured" if result.config.measured else {"fixed_s": result.config.latency},
+        "verdict": {
+            "contact": v.contact,
+            "margins_m": asdict(v.margins),
+            "breaches": [b.to_dict(names) for b in v.breaches],
+        },
         "team": {
-            "min_separation_m": _num(result.min_separation.min()),
-            "min_clearance_m": _num(result.min_clearance.min()),
+            "min_separation_m": _num(v.min_separation.min()),
+            "min_clearance_m": _num(v.min_clearance.min()),
             "required_clearance_m": result.required_clearance,
+            "min_ground_clearance_m": _num(v.min_ground.min()),
+            "min_headroom_m": _num(v.min_headroom.min()),
             "tracking_rms_m": _num(math.sqrt(float(np.mean(result.tracking_rms ** 2)))),
             "tracking_max_m": _num(result.tracking_max.max()),
             "baseline_arrival_s": _num(result.baseline_arrival),
             "extra_time_s": None if not math.isfinite(extra) else _num(extra),
             "stops": result.stops,
+            "holds": result.holds,
             **latency_summary(result.replans),
         },
+        "link": result.link,
         "uavs": per_uav,
         "plan_windows": [{"obstacle": w[0], "from": w[1], "to": w[2]} for w in result.plan_windows],
-        "config": asdict(result.config),
+        "config": {k: (_num(x) if isinstance(x, float) else x) for k, x in config.items()},
         "engine": result.details.get("engine"),
         "compile_time_s": result.details.get("compile_time_s"),
         "wall_time_s": result.wall_time_s,
@@ -170,8 +192,9 @@ def flight_dict(result: Any, max_samples: int = 1500) -> dict[str, Any]:
         "prisms": [{"polygon": [list(v) for v in p.polygon], "base": max(p.base, -1e9),
                     "top": min(p.top, 1e9), "nofly": p.is_nofly} for p in sc.world.prisms],
         "moving": moving,
-        "replans": [{"time": r.time, "trigger": r.trigger, "verdict": r.status if not r.solved
-                     else ("epsilon-equilibrium" if r.certified else "not certified")} for r in result.replans],
+        "replans": [{"time": r.time, "trigger": r.trigger, "verdict": r.status.value if not r.solved
+                     else ("epsilon-equilibrium" if r.certified else "not certified")}
+                    for r in result.replans if r.version > 0],
         "terrain": terrain,
         "separation_limit": float(result.separation_limit.max()),
     }

@@ -60,6 +60,7 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
     f = scenario.formation
     o = scenario.origin
     from staghunt.scenario.dynamics import dynamics_to_dict
+    from staghunt.world.dynamic import Link, Sensing
 
     out = {
         "name": scenario.name,
@@ -108,8 +109,9 @@ def scenario_to_dict(scenario: Scenario) -> dict[str, Any]:
         "vehicle": {k.name: (getattr(scenario.vehicle, k.name) if k.name == "airframe"
                              else float(getattr(scenario.vehicle, k.name))) for k in fields(VehicleLimits)},
     }
-    if not scenario.dynamics.empty:
-        out.update(dynamics_to_dict(scenario.dynamics))
+    dyn = scenario.dynamics
+    if not dyn.empty or dyn.sensing != Sensing() or dyn.link != Link():
+        out.update(dynamics_to_dict(dyn))
     if scenario.inspection is not None:
         out.update(inspection_to_dict(scenario))
     return out

@@ -1,4 +1,5 @@
-"""The changing site's tables (``[[moving]]``, ``[[jibs]]``, ``[[events]]``, ``[sensing]``), in a
+"""The changing site's tables (``[[moving]]``, ``[[jibs]]``, ``[[events]]``, ``[sensing]``,
+``[link]``), in a
 scenario file or an events file (``staghunt fly --events FILE``): checked tables in,
 :class:`~staghunt.world.dynamic.Dynamics` out, with the checks that need the site."""
 
@@ -13,7 +14,7 @@ import numpy as np
 from staghunt.scenario.errors import ScenarioError, fmt
 from staghunt.scenario.shapes import check_polygon, make_prism, nofly_zone
 from staghunt.world import Cylinder, World
-from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, Sensing, SlewingJib
+from staghunt.world.dynamic import Dynamics, Event, Link, MovingCylinder, Sensing, SlewingJib
 
 if TYPE_CHECKING:
     from staghunt.scenario.model import Scenario
@@ -46,9 +47,9 @@ def _jib(t: "JibTable", i: int, world: World) -> SlewingJib:
 
 
 def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: str = "",
-                         first_popup: int = 1) -> tuple[Dynamics, bool]:
+                         first_popup: int = 1) -> tuple[Dynamics, bool, bool]:
     """The :class:`Dynamics` of the checked tables of ``f`` in ``world``, and whether ``f``
-    gave a ``[sensing]`` table. ``prefix`` goes before key paths in errors; appeared obstacles
+    gave a ``[sensing]`` and a ``[link]`` table. ``prefix`` goes before key paths in errors; appeared obstacles
     without a name are called ``pop-up <i>`` from ``first_popup`` on."""
     moving = []
     for i, m in enumerate(f.moving):
@@ -90,8 +91,9 @@ def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: s
                      else make_prism(poly, e.base or 0.0, e.height, world.terrain, name))
         events.append(Event(e.time, "appear", name, shape))
     sensing = Sensing(**f.sensing.model_dump()) if f.sensing is not None else Sensing()
-    dyn = Dynamics(tuple(moving), tuple(jibs), tuple(sorted(events, key=lambda e: e.time)), sensing)
-    return dyn, f.sensing is not None
+    link = Link(**f.link.model_dump()) if f.link is not None else Link()
+    dyn = Dynamics(tuple(moving), tuple(jibs), tuple(sorted(events, key=lambda e: e.time)), sensing, link)
+    return dyn, f.sensing is not None, f.link is not None
 
 
 def check_names(dyn: Dynamics, world: World, key: str = "events") -> None:
@@ -167,9 +169,9 @@ def load_events(path: str | os.PathLike[str], scenario: "Scenario") -> Dynamics:
         f = validate(data, EventsFile)
         own = scenario.dynamics
         first = 1 + sum(1 for e in own.events if e.kind == "appear")
-        extra, sensing_given = dynamics_from_tables(f, scenario.world, first_popup=first)
+        extra, sensing_given, link_given = dynamics_from_tables(f, scenario.world, first_popup=first)
         check_take_off(extra, scenario.team, scenario.world)
-        dyn = own.merged(extra, sensing_given)
+        dyn = own.merged(extra, sensing_given, link_given)
         check_names(dyn, scenario.world)
     except ScenarioError as exc:
         raise ScenarioError(exc.detail, exc.key, source) from None
@@ -209,4 +211,5 @@ def dynamics_to_dict(dyn: Dynamics) -> dict[str, Any]:
     s = dyn.sensing
     out["sensing"] = {"range": s.range, "rate": s.rate, "position_noise": s.position_noise,
                       "velocity_noise": s.velocity_noise}
+    out["link"] = {"delay": dyn.link.delay, "jitter": dyn.link.jitter, "loss": dyn.link.loss}
     return out

@@ -34,7 +34,7 @@ from staghunt.scenario.schema_base import (  # noqa: F401  (re-exported: the for
     BaseHeight, Matrix, NonNegative, Number, Polygon, Solid, Table, TopHeight, XYH, fail,
 )
 from staghunt.scenario.schema_dynamic import (  # noqa: F401  (re-exported: part of the format)
-    EventsFile, EventTable, JibTable, MovingTable, SensingTable,
+    EventsFile, EventTable, JibTable, LinkTable, MovingTable, SensingTable,
 )
 from staghunt.task import VehicleLimits
 from staghunt.task.airframes import AIRFRAME_NAMES
@@ -300,6 +300,7 @@ class ScenarioFile(Table):
     jibs: list[JibTable] = []
     events: list[EventTable] = []
     sensing: Optional[SensingTable] = None
+    link: Optional[LinkTable] = None
     camera: Optional[CameraRef] = Field(None, description="the team's camera: a name of the shipped table or a "
                                         "table of its geometry")
     payload: Optional[PayloadTable] = Field(None, description="the team's default gimbal pitch range and endurance")

@@ -135,9 +135,17 @@ class SensingTable(Table):
     velocity_noise: Annotated[float, Field(ge=0, le=10, description="m/s, standard deviation of the fed-back velocities")] = 0.0
 
 
+class LinkTable(Table):
+    """The radio between the ground station and each UAV (both ways)."""
+
+    delay: Annotated[float, Field(ge=0, le=10, description="s, one way")] = 0.1
+    jitter: Annotated[float, Field(ge=0, le=10, description="s, standard deviation added to the delay")] = 0.03
+    loss: Annotated[float, Field(ge=0, lt=1, description="share of messages lost")] = 0.01
+
+
 class EventsFile(Table):
     """An events file (``staghunt fly --events FILE``): what changes in flight, added to the
-    scenario's own (its [sensing] replaces the scenario's)."""
+    scenario's own (its [sensing] and [link] replace the scenario's)."""
 
     model_config = ConfigDict(title="staghunt events")
 
@@ -145,3 +153,4 @@ class EventsFile(Table):
     moving: list[MovingTable] = []
     jibs: list[JibTable] = []
     sensing: Optional[SensingTable] = None
+    link: Optional[LinkTable] = None

@@ -11,10 +11,11 @@ safe: smooth curves through the waypoints are fastest, but may cut a corner clos
 obstacle than the planned polyline; splitting the legs into shorter sub-legs keeps the curve
 closer to the polyline at the price of slower turns.
 
-:func:`check_in_time` samples the trajectories on one time grid (step <= 0.1 s) and checks, at
-the same instant, the distance between UAVs against ``d_s + 2 r``, the obstacle clearance
-against ``min_clearance`` (cylinders, prisms, no-fly zones, the ceiling), the height above
-ground, and reports the minima; a broken limit makes the mission unsafe.
+:func:`check_in_time` samples the trajectories on one time grid (every 0.02 s) and judges them
+with the one safety judge (:mod:`staghunt.safety`) at the same instant: the distance between
+UAVs against ``d_s + 2 r``, the clearance to the obstacles (cylinders, prisms, no-fly zones)
+and to the ground against ``min_clearance``, the headroom under the ceiling, and reports the
+minima; a broken margin makes the mission unsafe.
 """
 
 from __future__ import annotations
@@ -25,15 +26,19 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from staghunt.checks import outside_site, plan_metrics, violations
+from staghunt.checks import outside_site
 from staghunt.costs import CostModel
+from staghunt.safety import Margins, Scene, judge
 from staghunt.task import VehicleLimits
 from staghunt.trajectory import timing as tm
+from staghunt.trajectory.team import TeamTrajectory
 
 MARGIN = 1e-3
 """Relative margin kept below the speed and acceleration limits."""
 SAMPLE_S = 0.1
-"""Largest step of the time grid of the checks and of ``trajectories.csv``."""
+"""Largest step of the time grid of ``trajectories.csv``."""
+CHECK_S = 0.02
+"""Step of the time grid of :func:`check_in_time` (at cruise speed 5 m/s, 0.1 m between samples)."""
 SPACINGS = (math.inf, 10.0, 4.0, 1.5)
 """Sub-leg lengths (m) :func:`time_and_check` tries, smoothest first (``inf``: the waypoints only)."""
 
@@ -79,6 +84,24 @@ class Trajectories:
         """``(T,)`` times from 0 to arrival with a step of at most ``step``."""
         n = max(1, math.ceil(self.duration / step - 1e-9))
         return np.linspace(0.0, self.duration, n + 1)
+
+    @property
+    def n_uavs(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def span(self) -> tuple[np.ndarray, np.ndarray]:
+        """Every UAV leaves at 0 and arrives at :attr:`duration` (the common timing)."""
+        return np.zeros(self.n_uavs), np.full(self.n_uavs, self.duration)
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        """``(4, N, T, 3)`` position, velocity, acceleration, jerk at times ``t`` ``(T,)``
+        (:class:`~staghunt.trajectory.team.TeamTrajectory`; at rest outside ``[0, duration]``)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        tc = np.clip(t, 0.0, self.duration)
+        out = np.stack([np.moveaxis(self.spline(tc, d), 0, 1) for d in range(4)])
+        out[1:, :, (t < 0.0) | (t > self.duration)] = 0.0
+        return out
 
     def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Positions and velocities ``(N, T, 3)`` at times ``t`` ``(T,)``."""
@@ -183,38 +206,34 @@ class SafetyReport:
         return not self.problems
 
 
-def check_in_time(model: CostModel, traj: Trajectories, names: list[str], step: float = SAMPLE_S) -> SafetyReport:
-    """Separation, clearance and height of the trajectories sampled every ``<= step`` seconds
-    (:func:`check_positions`)."""
-    t = traj.grid(step)
-    pos, _ = traj.sample(t)  # (N, T, 3)
-    return check_positions(model, pos, names, float(t[1] - t[0]) if len(t) > 1 else 0.0)
+def check_in_time(model: CostModel, traj: TeamTrajectory, names: list[str], step: float = CHECK_S) -> SafetyReport:
+    """Separation, clearance, ground and ceiling of the trajectories sampled every ``<= step``
+    seconds (:func:`check_positions`)."""
+    t0, t1 = float(np.min(traj.span[0])), float(np.max(traj.span[1]))
+    t = np.linspace(t0, t1, max(2, math.ceil((t1 - t0) / step - 1e-9) + 1))
+    return check_positions(model, traj.state(t)[0], names, float(t[1] - t[0]))
 
 
 def check_positions(model: CostModel, pos: np.ndarray, names: list[str], step: float) -> SafetyReport:
-    """Separation, clearance and height of every UAV's positions ``pos`` ``(N, T, 3)`` (absolute)
-    sampled at the same ``T`` instants, ``step`` seconds apart.
-
-    The samples become a dense "plan" whose synchronised points are the instants, so the
-    project's own checks (:func:`staghunt.checks.plan_metrics`, :func:`violations`) judge them:
-    separation at the same instant, obstacles along the short segments between samples."""
-    free = pos[:, 1:-1].copy()
-    free[..., 2] = pos[:, 1:-1, 2] - model.terrain.height(free[..., 0], free[..., 1])
-    if free.shape[1] == 0:
-        free = pos[:, :1].copy()
-        free[..., 2] -= model.terrain.height(free[..., 0], free[..., 1])
-    m = plan_metrics(model, free)
-    # violations() already judges obstacles against R + r + min_clearance, the ceiling, the
-    # ground and the separation at every instant.
-    problems = [f"in time: {v}" for v in violations(model, free, names)]
-    notes = outside_site(model, free, names)
+    """Separation, clearance, ground and ceiling of every UAV's positions ``pos`` ``(N, T, 3)``
+    (absolute) sampled at the same ``T`` instants, ``step`` seconds apart, judged by the one
+    safety judge (:func:`staghunt.safety.judge`) with the model's required margins (its hard
+    clearance to obstacles and to the ground, ``d_s`` between UAVs); departures from the
+    planning box are notes."""
+    times = np.arange(pos.shape[1]) * step
+    margins = Margins(float(model.min_clearance), float(model.safe_distance), float(model.min_clearance), 0.0)
+    verdict = judge(Scene.of_arrays(model.terrain, model.ceiling, model.cylinders, model.prisms, model.prism_edges),
+                    np.asarray(model.radius, dtype=float), times, pos, margins, names)
+    free = pos.copy()
+    free[..., 2] -= model.terrain.height(free[..., 0], free[..., 1])
+    notes = outside_site(model, free[:, 1:-1] if free.shape[1] > 2 else free[:, :1], names)
     return SafetyReport(
         times=pos.shape[1], step=step,
-        min_separation=tuple(float(v) for v in m.min_separation_waypoints),
-        separation_limit=tuple(float(v) for v in m.separation_limit),
-        min_clearance=tuple(float(v) for v in m.min_clearance),
+        min_separation=tuple(float(v) for v in verdict.min_separation),
+        separation_limit=tuple(float(v) for v in model.safe_distance + 2.0 * np.asarray(model.radius)),
+        min_clearance=tuple(float(v) for v in verdict.min_clearance),
         required_clearance=float(model.min_clearance),
-        min_height=tuple(float(v) for v in m.min_height),
-        problems=tuple(problems[:20]),
+        min_height=tuple(float(v) for v in verdict.min_ground + np.asarray(model.radius)),
+        problems=tuple(f"in time: {p}" for p in verdict.problems(names)),
         notes=tuple(f"{x} (sampled trajectory; breaks no limit)" for x in notes[:10]),
     )

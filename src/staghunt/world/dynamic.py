@@ -13,10 +13,11 @@ Times are seconds after take-off; positions are in the site frame (m). Two known
   deg/s from ``start_time`` on, then holding (``"stop"``) or slewing back and forth (``"reverse"``).
 
 :class:`Event`\\ s change the world at a given time (``appear``, ``disappear``); the planner
-learns of an appeared obstacle only when a UAV comes within the :class:`Sensing` range of it.
+learns of an appeared obstacle only when a UAV comes within the :class:`Sensing` range of it,
+over the radio :class:`Link`.
 
 Sound offline treatment of known motions (docs/model.md, "A site that changes"): plans are
-checked *in time* against the true positions (:func:`staghunt.flight.safety.moving_clearance`), and a conflict is
+checked *in time* against the true positions (:func:`staghunt.safety.measure.moving_clearance`), and a conflict is
 removed by re-planning with the obstacle's **swept volume over the conflict's time window**
 (:meth:`Dynamics.swept`) as static obstacles.
 """
@@ -185,13 +186,31 @@ class Sensing:
 
 
 @dataclass(frozen=True)
+class Link:
+    """The radio between the ground station (the planner) and each UAV, both ways: every message
+    takes ``delay`` (s, one way) plus ``jitter`` (s) times a standard normal draw clipped to
+    [-3, 3] (at least 0), and is lost with probability ``loss``."""
+
+    delay: float = 0.1
+    jitter: float = 0.03
+    loss: float = 0.01
+
+    @property
+    def worst_delay(self) -> float:
+        """The longest a message that arrives can take (s)."""
+        return self.delay + 3.0 * self.jitter
+
+
+@dataclass(frozen=True)
 class Dynamics:
-    """Everything about the site that changes with time (empty by default)."""
+    """Everything about the site that changes with time (empty by default), what the team
+    senses of it and the radio it reports over."""
 
     moving: tuple[MovingCylinder, ...] = ()
     jibs: tuple[SlewingJib, ...] = ()
     events: tuple[Event, ...] = ()
     sensing: Sensing = field(default_factory=Sensing)
+    link: Link = field(default_factory=Link)
 
     @property
     def empty(self) -> bool:
@@ -201,12 +220,12 @@ class Dynamics:
     def known_motion(self) -> bool:
         return bool(self.moving or self.jibs)
 
-    def merged(self, other: "Dynamics", sensing_given: bool) -> "Dynamics":
+    def merged(self, other: "Dynamics", sensing_given: bool, link_given: bool = False) -> "Dynamics":
         """This world plus ``other``'s motions and events (an events file); ``other``'s sensing
-        replaces this one's if ``sensing_given``."""
+        replaces this one's if ``sensing_given``, its link if ``link_given``."""
         events = tuple(sorted(self.events + other.events, key=lambda e: e.time))
         return Dynamics(self.moving + other.moving, self.jibs + other.jibs, events,
-                        other.sensing if sensing_given else self.sensing)
+                        other.sensing if sensing_given else self.sensing, other.link if link_given else self.link)
 
     def removed(self, t: float) -> set[str]:
         """Names of the obstacles that have disappeared by time ``t``."""

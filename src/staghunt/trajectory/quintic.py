@@ -1,4 +1,5 @@
-"""The team's reference trajectory in flight: timed pieces spliced one after the other.
+"""Quintic team trajectories, the curves a flight flies: timed pieces spliced one after the
+other (:class:`Reference`, a :class:`~staghunt.trajectory.team.TeamTrajectory`).
 
 A piece is either
 
@@ -15,12 +16,13 @@ A piece is either
   grid, on a 100 ms one until that passes) the knot intervals where it does (and their
   neighbours) are slowed down, so a sharp
   turn at the start of a re-plan slows the start, not the whole flight; or
-- a **synchronised stop** (:func:`stop_piece`): the previous piece with time slowed down by
-  one common warp ``tau(t)``, ``tau' = 1 - (3u^2 - 2u^3)``, ``u = (t - t_s) / T``: every UAV
-  stays on its planned path (so the separations and clearances already checked still hold),
-  and all of them come to rest together at the same path parameter. ``tau'' = 0`` at both ends,
-  so position, velocity and acceleration are continuous; ``T`` is the shortest that keeps the
-  acceleration within ``max_acceleration``. An emergency stop uses :func:`brake_warp` instead
+- a **synchronised stop** (:func:`stop_piece`): the previous piece (or any team trajectory:
+  one UAV's own, for a hold) with time slowed down by one common warp ``tau(t)``,
+  ``tau' = 1 - (3u^2 - 2u^3)``, ``u = (t - t_s) / T``: every UAV stays on its planned path
+  (so the separations and clearances already checked still hold), and all of them come to
+  rest together at the same path parameter. ``tau'' = 0`` at both ends, so position, velocity
+  and acceleration are continuous; ``T`` is the shortest that keeps the acceleration within
+  ``max_acceleration``. An emergency stop uses :func:`brake_warp` instead
   (the same continuity, a shorter stop).
 
 Why scipy's ``make_interp_spline`` (k = 5) and not toppra or a minimum-snap package: the splice
@@ -39,6 +41,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from staghunt.task import VehicleLimits
+from staghunt.trajectory.team import TeamTrajectory, end_time
 from staghunt.trajectory.timing import merge_waypoints, split_legs
 
 CHECK_STEP_S = 0.02
@@ -48,6 +51,8 @@ COARSE_STEP_S = 0.1
 well, for a fifth of the samples; a schedule is accepted on the :data:`CHECK_STEP_S` grid only."""
 MARGIN = 0.98
 """Peaks are kept below this share of the limits (the grid may miss a peak between samples)."""
+CACHED = 8
+"""Answers of :meth:`Piece.state` kept per piece."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -57,8 +62,10 @@ class Piece:
 
     - ``kind``: ``"path"`` (a timed path) or ``"stop"`` (a synchronised stop of ``base``).
     - ``spline``: for a path, a :class:`BSpline` over ``[t0, t1]`` with values ``(N, 3)``.
-    - ``base``, ``duration``: for a stop, the piece it slows down and the warp's length ``T``.
-    - ``knots``: ``(M,)`` the waypoint times; ``points``: ``(N, M, 3)`` the planned points.
+    - ``base``, ``duration``: for a stop, the trajectory it slows down (a piece, or any
+      :class:`~staghunt.trajectory.team.TeamTrajectory`) and the warp's length ``T``.
+    - ``knots``: ``(M,)`` the waypoint times; ``points``: ``(N, M, 3)`` the planned points
+      (a stop of a trajectory other than a piece: its positions at ``t0`` and at rest).
     """
 
     kind: Literal["path", "stop"]
@@ -67,9 +74,17 @@ class Piece:
     knots: np.ndarray
     points: np.ndarray
     spline: BSpline | None = None
-    base: "Piece | None" = None
+    base: "TeamTrajectory | None" = None
     duration: float = 0.0
     brake: bool = False
+
+    @property
+    def n_uavs(self) -> int:
+        return int(self.points.shape[0])
+
+    @property
+    def span(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.full(self.n_uavs, self.t0), np.full(self.n_uavs, self.t1)
 
     def warp(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """A stop's ``tau, tau', tau''`` at times ``t`` ``(T,)``: the smooth warp of the module
@@ -86,8 +101,22 @@ class Piece:
 
     def state(self, t: np.ndarray) -> np.ndarray:
         """``(4, N, T, 3)``: position, velocity, acceleration and jerk at times ``t`` ``(T,)``
-        (a stop's jerk is reported as 0: the controllers used need no more than acceleration)."""
+        (a stop's jerk is reported as 0: the controllers used need no more than acceleration).
+        Read-only: the last few answers are kept, since a team flying rows of one plan (every
+        UAV its own track) asks the same times once per UAV."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
+        cache: dict[bytes, np.ndarray] = self.__dict__.setdefault("_answers", {})
+        key = t.tobytes()
+        if key in cache:
+            return cache[key]
+        out = self._state(t)
+        out.setflags(write=False)
+        if len(cache) >= CACHED:
+            cache.pop(next(iter(cache)))
+        cache[key] = out
+        return out
+
+    def _state(self, t: np.ndarray) -> np.ndarray:
         if self.kind == "path":
             assert self.spline is not None
             tc = np.clip(t, self.t0, self.t1)
@@ -97,9 +126,12 @@ class Piece:
             return out
         assert self.base is not None
         tau, d1, d2 = self.warp(t)
-        tau = np.minimum(tau, self.base.t1)
+        last = self.__dict__.get("_last")
+        if last is None:
+            last = self.__dict__["_last"] = end_time(self.base)
+        tau = np.minimum(tau, last)
         b = self.base.state(tau)
-        at_end = (tau >= self.base.t1)[None, :, None]
+        at_end = (tau >= last)[None, :, None]
         vel = np.where(at_end, 0.0, b[1] * d1[None, :, None])
         acc = np.where(at_end, 0.0, b[2] * d1[None, :, None] ** 2 + b[1] * d2[None, :, None])
         return np.stack([b[0], vel, acc, np.zeros_like(vel)])
@@ -123,13 +155,20 @@ class Reference:
         last = self.pieces[-1]
         return last.t1
 
+    @property
+    def n_uavs(self) -> int:
+        return self.pieces[0].n_uavs
+
+    @property
+    def span(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.full(self.n_uavs, self.pieces[0].t0), np.full(self.n_uavs, self.arrival)
+
     def state(self, t: np.ndarray) -> np.ndarray:
         """``(4, N, T, 3)`` position, velocity, acceleration, jerk at times ``t`` ``(T,)``."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         starts = np.array([p.t0 for p in self.pieces])
         idx = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(self.pieces) - 1)
-        N = self.pieces[0].points.shape[0]
-        out = np.zeros((4, N, len(t), 3))
+        out = np.zeros((4, self.n_uavs, len(t), 3))
         for i in np.unique(idx):
             sel = idx == i
             out[:, :, sel] = self.pieces[i].state(t[sel])
@@ -284,20 +323,29 @@ def brake_warp(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return np.interp(u, grid, tau), np.interp(u, grid, d1), np.interp(u, grid, d2)
 
 
-def stop_piece(ref: Reference, t_s: float, limits: VehicleLimits, brake: bool = False) -> Piece:
-    """A synchronised stop starting at ``t_s``: the piece flown at ``t_s`` slowed down to rest
-    with one common time warp (module docstring; ``brake``: :func:`brake_warp`, the shortest
-    stop, for emergencies), as short as ``max_acceleration`` allows."""
-    base = ref.piece_at(t_s)
-    if base.kind == "stop":  # already stopping: keep that stop
+def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bool = False) -> Piece:
+    """A synchronised stop starting at ``t_s``: ``ref`` (of a :class:`Reference`, the piece
+    flown at ``t_s``) slowed down to rest with one common time warp (module docstring;
+    ``brake``: :func:`brake_warp`, the shortest stop, for emergencies), as short as
+    ``max_acceleration`` allows."""
+    base = ref.piece_at(t_s) if isinstance(ref, Reference) else ref
+    if isinstance(base, Piece) and base.kind == "stop":  # already stopping: keep that stop
         return base
-    t = np.linspace(t_s, base.t1, max(2, math.ceil((base.t1 - t_s) / CHECK_STEP_S) + 1))
+    last = end_time(base)
+    peak = 1.0 / (1.0 - BRAKE_RAMP) if brake else 1.5  # peak deceleration x T / v
+    v0 = float(np.linalg.norm(base.state(np.array([t_s]))[1], axis=-1).max())
+    # the stop flies the base up to T / 2 on (tau(T) - t_s = T / 2 for both warps): its speed there
+    reach = min(last, t_s + 0.5 * peak * max(v0, 1.0) / (MARGIN * limits.max_acceleration) + 1.0)
+    t = np.linspace(t_s, max(reach, t_s), max(2, math.ceil((reach - t_s) / CHECK_STEP_S) + 1))
     s = base.state(t)
     v = float(np.linalg.norm(s[1], axis=-1).max())
-    peak = 1.0 / (1.0 - BRAKE_RAMP) if brake else 1.5  # peak deceleration x T / v
     T = max(0.5, peak * v / (MARGIN * limits.max_acceleration))
+    if isinstance(base, Piece):
+        knots, points = base.knots, base.points
+    else:
+        knots, points = np.array([t_s]), s[0][:, :1]
     for _ in range(30):
-        piece = Piece("stop", t_s, t_s + T, base.knots, base.points, base=base, duration=T, brake=brake)
+        piece = Piece("stop", t_s, t_s + T, knots, points, base=base, duration=T, brake=brake)
         grid = np.linspace(t_s, t_s + T, max(2, math.ceil(T / CHECK_STEP_S) + 1))
         peak = float(np.linalg.norm(piece.state(grid)[2], axis=-1).max())
         if peak <= limits.max_acceleration:

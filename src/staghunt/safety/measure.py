@@ -1,5 +1,6 @@
-"""Safety of trajectories at the same instant: separation between UAVs and clearance to the
-obstacles where they are at that instant (static, appeared, moving).
+"""Measures of the team's positions at the same instant: distances between UAVs and clearance
+to the obstacles where they are at that instant (fixed, appeared, moving); judged by
+:mod:`staghunt.safety.judge`.
 
 Conventions are the planner's (docs/model.md): cylinders are infinitely tall (clearance = the
 horizontal distance to the axis ``- R - r``); a prism, a no-fly zone or a jib counts where the
@@ -74,11 +75,21 @@ def static_clearance(cylinders: Sequence[Cylinder], prisms: Sequence[Prism], pos
                      radius: np.ndarray) -> np.ndarray:
     """``(N, T)`` least clearance of positions ``pos`` ``(N, T, 3)`` (absolute) to fixed
     cylinders and prisms (``inf`` without any)."""
+    return static_nearest(cylinders, prisms, pos, radius)[0]
+
+
+def static_nearest(cylinders: Sequence[Cylinder], prisms: Sequence[Prism], pos: np.ndarray,
+                   radius: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`static_clearance` and ``(N, T)`` the index of the nearest obstacle (cylinders
+    first, then prisms; ``-1``: none)."""
     N, T = pos.shape[:2]
     r = np.asarray(radius, dtype=float)[:, None]
     best = np.full((N, T), np.inf)
-    for c in cylinders:
-        best = np.minimum(best, np.hypot(pos[..., 0] - c.x, pos[..., 1] - c.y) - c.radius - r)
+    which = np.full((N, T), -1, dtype=int)
+    for i, c in enumerate(cylinders):
+        d = np.hypot(pos[..., 0] - c.x, pos[..., 1] - c.y) - c.radius - r
+        better = d < best
+        best, which = np.where(better, d, best), np.where(better, i, which)
     x, y, z = pos[..., 0], pos[..., 1], pos[..., 2]
     boxes = [np.asarray(p.polygon, dtype=float) for p in prisms]
     # Nearest boxes first: a prism is measured only at the instants where its bounding box (a
@@ -95,8 +106,10 @@ def static_clearance(cylinders: Sequence[Cylinder], prisms: Sequence[Prism], pos
         n, k = np.nonzero(near)
         edges = np.concatenate([v, np.roll(v, -1, axis=0)], axis=1)
         d = point_polygon_distance(x[n, k], y[n, k], edges) - r[n, 0]
-        best[n, k] = np.minimum(best[n, k], d)
-    return best
+        better = d < best[n, k]
+        best[n[better], k[better]] = d[better]
+        which[n[better], k[better]] = len(cylinders) + i
+    return best, which
 
 
 def separations(pos: np.ndarray) -> np.ndarray:
@@ -108,3 +121,25 @@ def separations(pos: np.ndarray) -> np.ndarray:
     d2 = (rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1]) + rel[..., 2] * rel[..., 2]
     d2[np.arange(N), np.arange(N)] = np.inf
     return np.sqrt(d2.min(axis=1))  # the root of the least square: the least distance, as a norm gives it
+
+
+def nearest_mates(pos: np.ndarray, radius: np.ndarray, active: np.ndarray | None = None
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each UAV's nearest team-mate at the same instant, by the gap between their bodies:
+    ``(N, T)`` the centre distance to the team-mate whose surface is nearest (``inf`` alone)
+    and ``(N, T)`` that team-mate's index (``-1`` alone). ``radius``: ``(N,)``; ``active``
+    ``(N, T)``: the instants a UAV counts (not: no team-mate for anybody)."""
+    N, T = pos.shape[:2]
+    if N < 2:
+        return np.full((N, T), np.inf), np.full((N, T), -1, dtype=int)
+    rel = pos[:, None] - pos[None, :]  # (N, N, T, 3)
+    d = np.sqrt((rel[..., 0] * rel[..., 0] + rel[..., 1] * rel[..., 1]) + rel[..., 2] * rel[..., 2])
+    r = np.asarray(radius, dtype=float)
+    gap = d - (r[:, None] + r[None, :])[..., None]
+    gap[np.arange(N), np.arange(N)] = np.inf
+    if active is not None:
+        gap = np.where(active[:, None] & active[None, :], gap, np.inf)
+    mate = np.argmin(gap, axis=1)  # (N, T)
+    near = np.take_along_axis(d, mate[:, None], axis=1)[:, 0]
+    alone = ~np.isfinite(np.take_along_axis(gap, mate[:, None], axis=1)[:, 0])
+    return np.where(alone, np.inf, near), np.where(alone, -1, mate)

@@ -1,0 +1,135 @@
+"""The safety fallbacks of a re-plan: synchronised stops (to hover, before a plan from rest, or in
+an emergency) and a hovering team's sidestep out of a known motion's way.
+
+Every fallback is a plan like any other: a :class:`~staghunt.trajectory.quintic.Reference`
+whose first piece starts when the UAVs switch to it, judged by the planner's
+:class:`~staghunt.flight.known.Acceptance` before it is sent. A stop slows the team's current
+trajectory (each UAV's row of it) down with one common time warp, so every UAV stays on the
+path already checked (:func:`~staghunt.trajectory.quintic.stop_piece`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from staghunt.flight.known import Acceptance
+from staghunt.flight.records import ReplanStatus
+from staghunt.safety.measure import static_clearance
+from staghunt.trajectory.quintic import Piece, Reference, stop_piece, timed_path
+from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track
+
+EMERGENCY_FACTORS = (2.0, 3.0)
+"""Multiples of ``max_acceleration`` an emergency stop may brake at, tried in this order: the
+mission limit (3 m/s^2 by default) is well below a multirotor's capability (the simulated
+Hummingbird's thrust-to-weight ratio is about 10: 9 m/s^2 of braking tilts it by 43 degrees at
+1.4 g of thrust), and a stop that the lower factor cannot make clear of what is known uses the
+higher one."""
+
+
+def stopping(base: TeamTrajectory, t: float) -> bool:
+    """Whether every UAV of ``base`` is at rest or coming to rest (flying a stop) at ``t``."""
+    speed = np.linalg.norm(base.state(np.array([t]))[1][:, 0], axis=-1)
+    return all(speed[n] < 1e-3 or _is_stop_under(base, t, n) for n in range(base.n_uavs))
+
+
+def rest_time(base: TeamTrajectory, t: float, within: float = 60.0) -> float:
+    """The first time from ``t`` on when every UAV of ``base`` is at rest (every 0.1 s;
+    ``t + within`` at the latest)."""
+    grid = t + np.arange(0.0, within + 0.1, 0.1)
+    speed = np.linalg.norm(base.state(grid)[1], axis=-1).max(axis=0)
+    still = np.flatnonzero(speed < 1e-3)
+    return float(grid[still[0]]) if still.size else t + within
+
+
+def _is_stop_under(base: TeamTrajectory, t: float, n: int) -> bool:
+    """Whether UAV ``n`` of ``base`` flies a stop piece at ``t``."""
+    traj, row = base, n
+    while True:
+        if isinstance(traj, Track):
+            _, traj, row = traj.segment_at(t)
+        elif isinstance(traj, RowTeam):
+            traj, row = traj.parts[row], traj.rows[row]
+        elif isinstance(traj, Reference):
+            traj = traj.piece_at(t)
+        else:
+            return isinstance(traj, Piece) and traj.kind == "stop"
+
+
+@dataclass(frozen=True)
+class Fallback:
+    """The fallbacks of one flight: its acceptance (scenario, what is known, margins) and the
+    horizon (s) a hovering team must stay clear of the known motions."""
+
+    acceptance: Acceptance
+    horizon: float
+
+    def stop(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Reference, ReplanStatus]:
+        """A synchronised stop at ``t_s`` within ``max_acceleration``; if that stop would come
+        closer than the acceptance's margins to something known, an emergency stop from
+        ``t_soon`` (the earliest the UAVs can get it) with the braking warp at the first of
+        :data:`EMERGENCY_FACTORS` times the acceleration that passes, or else the stop with no
+        contact (with an obstacle or a team-mate) that keeps the most clearance."""
+        limits = self.acceptance.scenario.vehicle
+        options = []
+        tries = [(ReplanStatus.STOP, t_s, limits)] + [
+            (ReplanStatus.EMERGENCY_STOP, t_soon, replace(limits, max_acceleration=f * limits.max_acceleration))
+            for f in EMERGENCY_FACTORS]
+        for status, t0, lim in tries:
+            piece = stop_piece(base, t0, lim, brake=status is ReplanStatus.EMERGENCY_STOP)
+            plan = Reference((piece,))
+            verdict = self.acceptance.check(plan, t0, piece.t1 + 1.0)
+            if verdict.safe:
+                return plan, status
+            options.append(((not verdict.contact, verdict.least_clearance), plan, status))
+        _, plan, status = max(options, key=lambda o: o[0])  # no contact first, then the most clearance
+        return plan, status
+
+    def stop_short(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Piece, bool]:
+        """The stop before a plan from rest: at ``t_s`` within ``max_acceleration``, or, if that
+        leaves a UAV within twice the hard clearance of something known (the encoding then has
+        little room to leave), from ``t_soon`` with twice the acceleration when that rests
+        farther. Returns the stop piece and whether it breaks the acceptance."""
+        sc = self.acceptance.scenario
+        limits = sc.vehicle
+        cyl, prm = self.acceptance.known.shapes()
+        r = np.array([u.radius for u in sc.team])
+        best = None
+        for t0, lim in ((t_s, limits), (t_soon, replace(limits, max_acceleration=2 * limits.max_acceleration))):
+            stop = stop_piece(base, t0, lim)
+            bad = not self.acceptance.check(Reference((stop,)), t0, stop.t1 + 1.0).safe
+            rest = stop.state(np.array([stop.t1]))[0]
+            room = float(static_clearance(cyl, prm, rest, r).min(initial=math.inf))
+            if best is None or (not bad and (best[1] or room > best[2])):
+                best = (stop, bad, room)
+            if not bad and room >= 2 * sc.costs.min_clearance:
+                break
+        assert best is not None
+        return best[0], best[1]
+
+    def sidestep(self, base: TeamTrajectory, t_s: float) -> Reference | None:
+        """A team hovering where a known motion will pass: move the whole formation (one rigid
+        offset, so separations hold) to the nearest spot that stays clear for the horizon,
+        trying 16 headings and offsets of 1 to 4 times the largest moving radius plus body and
+        clearance. ``None`` when the hover is not threatened or no spot is clear."""
+        acc, sc = self.acceptance, self.acceptance.scenario
+        dyn = acc.dyn
+        if not dyn.known_motion or acc.check(base, t_s, t_s + self.horizon).safe:
+            return None
+        t0 = rest_time(base, t_s)
+        here = base.state(np.array([t0]))[0][:, 0]  # (N, 3) where the team rests
+        size = max([m.radius for m in dyn.moving] + [j.width for j in dyn.jibs], default=1.0)
+        step = size + max(u.radius for u in sc.team) + sc.costs.min_clearance
+        b = sc.world.bounds
+        for dist in (1.0, 2.0, 3.0, 4.0):
+            for a in np.radians(np.arange(0.0, 360.0, 22.5)):
+                there = here + dist * step * np.array([math.cos(a), math.sin(a), 0.0])
+                if (there[:, 0].min() < b.xmin or there[:, 0].max() > b.xmax
+                        or there[:, 1].min() < b.ymin or there[:, 1].max() > b.ymax):
+                    continue
+                plan = Reference((timed_path(np.stack([here, there], axis=1), t0, sc.vehicle),))
+                if acc.check(plan, t0, plan.arrival + self.horizon).safe:
+                    return plan
+        return None

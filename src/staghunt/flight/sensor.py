@@ -1,0 +1,52 @@
+"""The team's sensors: every UAV's measured state (with the configured noise) and the obstacles
+that appeared within each UAV's sensing range (docs/model.md, section 8)."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from staghunt.safety.measure import static_clearance
+from staghunt.world import Cylinder, Prism
+from staghunt.world.dynamic import Dynamics
+
+
+def horizontal_distance(shape: Cylinder | Prism, xy: np.ndarray) -> np.ndarray:
+    """``(N,)`` horizontal distance from points ``(N, 2)`` to the shape's outline (0 inside)."""
+    pos = np.column_stack([xy, np.zeros(len(xy))])[:, None]
+    if isinstance(shape, Cylinder):
+        return np.maximum(static_clearance((shape,), (), pos, np.zeros(len(xy)))[:, 0], 0.0)
+    flat = replace(shape, base=-np.inf, top=np.inf)
+    return static_clearance((), (flat,), pos, np.zeros(len(xy)))[:, 0]
+
+
+class Sensor:
+    """What the UAVs sense of ``dyn``: :meth:`measure` their states, :meth:`detect` the obstacles
+    that appeared within ``dyn.sensing.range`` of each (remembered once seen, until they are
+    gone). Noise is drawn from ``rng``."""
+
+    def __init__(self, dyn: Dynamics, n_uavs: int, rng: np.random.Generator) -> None:
+        self.dyn, self.rng = dyn, rng
+        self.seen: list[dict[str, Cylinder | Prism]] = [{} for _ in range(n_uavs)]
+
+    def measure(self, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Measured positions and velocities ``(N, 3)`` of the true ones."""
+        s = self.dyn.sensing
+        if s.position_noise > 0:
+            pos = pos + self.rng.normal(0.0, s.position_noise, pos.shape)
+        if s.velocity_noise > 0:
+            vel = vel + self.rng.normal(0.0, s.velocity_noise, vel.shape)
+        return pos, vel
+
+    def detect(self, t: float, pos: np.ndarray) -> list[dict[str, Cylinder | Prism]]:
+        """Per UAV, every appeared obstacle it has seen by ``t`` (its true position ``(N, 3)``
+        within the sensing range of it), less those gone."""
+        gone = self.dyn.removed(t)
+        for e in self.dyn.events:
+            if e.kind != "appear" or e.time > t or e.shape is None or e.name in gone:
+                continue
+            near = horizontal_distance(e.shape, pos[:, :2]) <= self.dyn.sensing.range
+            for n in np.flatnonzero(near):
+                self.seen[n].setdefault(e.name, e.shape)
+        return [{k: v for k, v in s.items() if k not in gone} for s in self.seen]

@@ -1,0 +1,221 @@
+"""The game's loops of a re-plan, with a deadline: best-response rounds that return the best
+plan they have when time is up (:func:`anytime_rounds`), and the certify-and-improve loop
+(:func:`certify_and_improve`): certify a plan, adopt the better replies its certificate finds,
+certify again.
+
+Both know nothing of flight: what a plan must pass to be flown (timed, spliced, checked in
+time) is a callback, ``accept(plan) -> flown or None``. Time is a :class:`Deadline`; without
+one (``Deadline()``) nothing depends on the wall clock, so a seeded re-plan is reproducible.
+Shapes: ``N`` UAVs, ``K`` free waypoints.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Generic, TypeVar
+
+import numpy as np
+
+from staghunt.costs import CostModel, Evaluator
+from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.game import RoundsOutcome, best_response_rounds
+from staghunt.solvers.local import LocalSearch, local_pass
+from staghunt.solvers.response import LOCAL_SHARE, Certificate, CertifyOptions, CertifyRequest, certify_plan
+from staghunt.solvers.swarm import SwarmRunner
+
+LOCAL_PASSES = 5
+"""Most passes of the UAVs' local searches before a certificate."""
+
+Flown = TypeVar("Flown")
+
+
+@dataclass
+class Deadline:
+    """A wall-clock deadline (``time.perf_counter()`` seconds; ``None``: none) and the running
+    estimate of how long a certificate takes (s), to start one only if it can end in time."""
+
+    end: float | None = None
+    certificate_s: float = 0.0
+
+    @classmethod
+    def after(cls, seconds: float, certificate_s: float = 0.0) -> "Deadline":
+        return cls(time.perf_counter() + seconds, certificate_s)
+
+    def left(self) -> float:
+        return math.inf if self.end is None else self.end - time.perf_counter()
+
+    @property
+    def passed(self) -> bool:
+        return self.left() <= 0.0
+
+    def fits(self, seconds: float) -> bool:
+        return self.left() >= seconds
+
+
+class Cancelled(Exception):
+    """Raised inside a solve that is no longer needed."""
+
+
+class _TimeUp(Exception):
+    def __init__(self, plan: np.ndarray, spent: int) -> None:
+        self.plan, self.spent = plan, spent
+
+
+def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings, rng: np.random.Generator,
+                   runner: SwarmRunner, evaluator: Evaluator, budget: int, deadline: Deadline,
+                   cancelled: Callable[[], bool] | None = None, **options: Any) -> RoundsOutcome:
+    """:func:`~staghunt.solvers.game.best_response_rounds` from ``warm`` ``(N, K, 3)`` that,
+    once ``deadline`` has passed, stops after the reply in progress and returns the plan it
+    had then (``converged`` false). ``cancelled()`` true after a reply raises
+    :class:`Cancelled`. ``options``: the rounds' keyword arguments (``repair``,
+    ``reply_start``, ``azimuth``)."""
+    box: dict[str, Any] = {"plan": np.array(warm, dtype=float), "J": None, "last": None}
+
+    def evaluate(m: CostModel, plans: np.ndarray) -> Any:
+        out = evaluator(m, plans)
+        if plans.shape[0] == 1:  # the rounds judge each reply as a whole plan last, before on_reply
+            box["last"] = (plans[0].copy(), out.total[0].copy())
+        return out
+
+    def on_reply(spent: int, J: np.ndarray) -> None:
+        last = box["last"]
+        if last is not None and box["J"] is not None and not np.array_equal(J, box["J"]) and np.array_equal(J, last[1]):
+            box["plan"] = last[0]  # the reply just judged was accepted
+        box["J"] = J.copy()
+        if cancelled is not None and cancelled():
+            raise Cancelled
+        if deadline.passed:
+            raise _TimeUp(box["plan"], spent)
+
+    box["J"] = evaluator(model, box["plan"][None]).total[0].copy()
+    try:
+        return best_response_rounds(model, warm, settings, rng, runner, evaluate, budget, 0, on_reply, **options)
+    except _TimeUp as up:
+        J = evaluator(model, up.plan[None]).total[0]
+        return RoundsOutcome(up.plan, J, up.spent + 1, [], 0, False)
+
+
+@dataclass
+class Improved(Generic[Flown]):
+    """What :func:`certify_and_improve` ends with: the ``flown`` object of the ``plan``
+    ``(N, K, 3)`` kept, its ``certificate`` (``None``: no certificate could end before the
+    deadline), the path evaluations ``spent`` and the certificates made."""
+
+    flown: Flown
+    plan: np.ndarray
+    certificate: Certificate | None
+    spent: int = 0
+    certificates: int = 0
+    notes: list[str] = field(default_factory=list)
+
+
+def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: Callable[[np.ndarray], Flown | None],
+                        search: SolverSettings, options: CertifyOptions, rounds: int, rng: np.random.Generator,
+                        runner: SwarmRunner, evaluator: Evaluator, judge: Evaluator, azimuth: float,
+                        workers: int = 1, deadline: Deadline | None = None) -> Improved[Flown]:
+    """Certify ``plan`` of the game ``sub`` (flown as ``flown``, solved with headings within
+    ``azimuth``) and improve it while the certificate finds better replies.
+
+    With ``rounds`` > 0, every UAV first makes the certificate's own local search, in passes
+    until none gains more than epsilon (or the deadline passes); the gains are kept if
+    ``accept`` flies the plan. Then,
+    while a certificate finds better replies and ``rounds`` allow: every reply in turn
+    (largest gap first) that still gains more than epsilon with those already kept and keeps
+    the plan feasible; if that keeps more than one and ``accept`` flies the plan, certify it;
+    else the reply of the UAV with the largest gap that ``accept`` flies (or the next one
+    beyond epsilon), and the next certificate keeps that UAV's search (the others fly what it
+    fixed). One UAV's better reply can widen the others' gaps, so the plan returned is the
+    certified one with the least largest relative gap: never worse than the first.
+
+    ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
+    searches with ``runner``/``evaluator`` (``workers`` side by side); ``judge`` evaluates
+    single plans. ``deadline``: a certificate starts only if its running estimate fits before
+    the deadline (the estimate is updated with every certificate made)."""
+    deadline = deadline or Deadline()
+    model = CostModel.from_scenario(sub)
+    local = int(LOCAL_SHARE * search.particles * (search.iterations + 1))
+    eps = options.epsilon
+    best: tuple[Flown, np.ndarray, Certificate] | None = None
+    out = Improved(flown, plan, None)
+
+    def settle(plan: np.ndarray, flown: Flown) -> tuple[np.ndarray, Flown, bool, tuple[LocalSearch, ...]]:
+        """The certificate's own local searches before it, kept if ``accept`` flies the plan."""
+        team, J = plan.copy(), judge(model, plan[None]).total[0]
+        last: tuple[LocalSearch, ...] = ()
+        for _ in range(LOCAL_PASSES):
+            if deadline.passed:
+                break
+            done = local_pass(model, team, J, local, eps, judge, workers=workers)
+            team, J, last = done.plan, done.costs, done.searches
+            out.spent += done.evaluations
+            if not done.gains.any():
+                break
+        if not np.array_equal(team, plan):
+            again = accept(team)
+            if again is not None:
+                return team, again, True, last
+        return plan, flown, False, last
+
+    searched: tuple[LocalSearch, ...] = ()
+    if rounds > 0:
+        plan, flown, _, searched = settle(plan, flown)
+    carried: dict[int, Any] = {}
+    for round_ in range(rounds + 1):
+        if not deadline.fits(deadline.certificate_s):
+            out.notes.append("deadline: no time left for a certificate")
+            break
+        t0 = time.perf_counter()
+        request = CertifyRequest.of_checked(sub, plan, search, options, int(rng.integers(2**31)))
+        cert = certify_plan(request, runner=runner, azimuth=azimuth, workers=workers, carried=carried,
+                            evaluator=evaluator, searched=searched)
+        took = time.perf_counter() - t0
+        deadline.certificate_s = took if out.certificates == 0 and deadline.certificate_s == 0 else \
+            max(took, 0.5 * (deadline.certificate_s + took))
+        out.certificates += 1
+        out.spent += sum(u.evaluations - u.taken for u in cert.uavs)  # settle() counted what it took
+        if best is None or cert.max_relative_gap < best[2].max_relative_gap:
+            best = (flown, plan, cert)
+        if cert.is_equilibrium or round_ == rounds:
+            break
+        order = [n for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative)
+                 if cert.uavs[n].relative > eps and cert.uavs[n].deviation is not None]
+        adopted = None
+        if len(order) > 1:  # every reply in turn, kept if it still gains more than epsilon
+            team, J = plan.copy(), judge(model, plan[None]).total[0]
+            taken = 0
+            for n in order:
+                candidate = team.copy()
+                candidate[n] = cert.uavs[n].deviation
+                c = judge(model, candidate[None])
+                out.spent += 1
+                if c.total_violation[0] == 0 and c.total[0][n] < (1 - eps) * J[n]:
+                    team, J, taken = candidate, c.total[0], taken + 1
+            if taken > 1:
+                again = accept(team)
+                adopted = (team, again) if again is not None else None
+        carried = {}
+        if adopted is None:  # one reply: the largest gap that can be flown
+            for n in order:
+                candidate = plan.copy()
+                candidate[n] = cert.uavs[n].deviation
+                out.spent += 1
+                if judge(model, candidate[None]).total_violation[0] > 0:
+                    continue
+                again = accept(candidate)
+                if again is not None:
+                    adopted = (candidate, again)
+                    carried = {n: cert.uavs[n]}  # the others fly what UAV n's search fixed
+                    break
+        if adopted is None:
+            break
+        plan, flown = adopted
+        plan, flown, moved, searched = settle(plan, flown)
+        if moved:  # a carried search fixed the others' paths as they were
+            carried = {}
+    if best is not None:
+        out.flown, out.plan, out.certificate = best
+    else:
+        out.flown, out.plan = flown, plan
+    return out

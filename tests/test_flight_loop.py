@@ -1,0 +1,322 @@
+"""Closed-loop flights: time that does not wait for the planner, the radio link and its commit
+rule, holds and the reflex, the receding horizon, the verdict of the one safety judge, the
+flight files. Short seeded flights of the small site with a fixed latency (reproducible); the
+long ones are in benchmarks/replan.py."""
+
+from __future__ import annotations
+
+import csv
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from staghunt import load_scenario
+from staghunt.flight import Cause, FlightStatus, FlyConfig, Outage, ReplanStatus, fly
+from staghunt.safety import BreachKind, Severity
+from staghunt.safety.measure import moving_clearance
+from staghunt.trajectory.quintic import Reference, stop_piece, timed_path
+from staghunt.world import Cylinder
+from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib
+
+pytest.importorskip("rotorpy")
+
+DATA = Path(__file__).parent / "data"
+SMALL = str(DATA / "flight_small.toml")
+FIXED = FlyConfig(latency=0.3, replan_rate=0)
+"""Every re-plan takes 0.3 s, whatever it took; no receding horizon: the same flight every run."""
+WORST = 0.1 + 3 * 0.03
+"""The default link's worst delay (s)."""
+
+
+def run_cli(argv: list[str]) -> int:
+    from staghunt import cli
+
+    return cli.main(argv)
+
+
+@pytest.fixture(scope="module")
+def calm():
+    """The small site flown without events."""
+    return fly(SMALL, seed=0, config=FIXED)
+
+
+def _popup(calm, t_event: float = 4.0, ahead_s: float = 2.5, name: str = "popup") -> tuple[Dynamics, Cylinder]:
+    """A cylinder of radius 2 m on UAV1's route where the calm flight's UAV1 is ``ahead_s`` after it appears."""
+    at = calm.reference[0][np.searchsorted(calm.times, t_event + ahead_s)]
+    shape = Cylinder(float(at[0]), float(at[1]), 2.0, name)
+    return Dynamics(events=(Event(t_event, "appear", name, shape),)), shape
+
+
+@pytest.fixture(scope="module")
+def popup(calm):
+    dyn, shape = _popup(calm)
+    return fly(SMALL, events=dyn, seed=0, config=FIXED), dyn, shape
+
+
+def test_calm_flight_tracks_and_arrives(calm):
+    assert calm.status is FlightStatus.ARRIVED and not calm.replans and calm.verdict.safe
+    assert calm.tracking_rms.max() <= 0.3
+    assert np.all(calm.min_separation > calm.separation_limit)
+    assert np.all(calm.min_clearance > calm.required_clearance)
+    assert np.all(np.abs(calm.arrival - calm.baseline_arrival) < 1.5)
+    assert np.allclose(np.diff(calm.times), 0.01)  # 100 Hz
+    assert calm.link["sent"] > 500 and 0 < calm.link["lost"] < 0.03 * calm.link["sent"]  # 1 % lost
+
+
+def test_popup_on_the_next_leg_is_swerved_round_after_the_latency_and_the_link(popup):
+    r, _, shape = popup
+    rec = r.replans[0]
+    assert rec.cause is Cause.SENSED and "popup" in rec.trigger and rec.latency_mode == "fixed"
+    assert rec.effect_time == pytest.approx(rec.time + 0.3)  # the fixed latency, on a step
+    assert rec.switch_time == pytest.approx(rec.time + 0.3 + WORST)  # then the link's worst delay
+    assert rec.status is ReplanStatus.REPLANNED and r.stops == 0 and r.holds == 0  # a swerve, no stop
+    assert rec.committed and rec.certified and rec.nash_gaps and rec.evaluations > 0
+    assert 0 <= rec.state_error_m < 0.5
+    after = r.times >= 4.0  # the true clearance to the pop-up after it appeared, in the simulated flight
+    d = np.hypot(r.actual[:, after, 0] - shape.x, r.actual[:, after, 1] - shape.y) - shape.radius - 0.5
+    assert d.min() > r.required_clearance and r.status is FlightStatus.ARRIVED
+
+
+def test_a_replan_slower_than_its_deadline_flies_the_old_plan_meanwhile(calm):
+    """The re-plan takes 0.5 s against a deadline of 0.2 s: its plan would start before it
+    reached the UAVs, so it is dropped; the team flies the old plan until the re-plan's result
+    leaves the station, then the fallback (a stop, the old plan leading into the pop-up); the
+    retry from the hover has four times the deadline and flies."""
+    dyn, _ = _popup(calm)
+    r = fly(SMALL, events=dyn, seed=0, config=FlyConfig(latency=0.5, deadline=0.2, replan_rate=0))
+    rec = r.replans[0]
+    assert rec.late and rec.effect_time == pytest.approx(rec.time + 0.5) and rec.deadline_s == 0.2
+    assert rec.status in (ReplanStatus.STOP, ReplanStatus.EMERGENCY_STOP) and rec.switch_time >= rec.effect_time
+    k = np.searchsorted(r.times, rec.effect_time + 0.1)  # the old plan, exactly, until the fallback reached them
+    assert np.array_equal(r.reference[:, :k], calm.reference[:, :k])
+    assert not np.allclose(r.reference[:, k:k + 200], calm.reference[:, k:k + 200])
+    retry = r.replans[1]
+    assert retry.cause is Cause.RETRY and retry.deadline_s == pytest.approx(0.8) and not retry.late and retry.solved
+    assert not r.verdict.contact and r.status is FlightStatus.ARRIVED and r.stops == 1
+
+
+def test_a_lost_plan_message_makes_the_uav_hold_and_nothing_collides(popup):
+    """UAV1 (whose route the pop-up cuts) is out of radio contact while the swerve goes out:
+    it misses the plan, its team-mate flies it; the next heartbeat tells UAV1 a plan it does
+    not have has started, so it brakes where it is; the station re-plans from its hold."""
+    r0 = popup[0].replans[0]
+    shadow = Outage(0, r0.effect_time - 0.005, r0.switch_time + 0.05)
+    r = fly(SMALL, events=popup[1], seed=0, config=replace(FIXED, outages=(shadow,)))
+    first = r.replans[0]
+    assert first.version == 1 and not first.committed  # UAV1 never acknowledged plan 1
+    held = [x for x in r.replans if x.cause is Cause.HOLDING]
+    assert held and held[0].trigger == "UAV1 holds (missed plan)" and held[0].solved
+    assert r.holds == 1 and r.stops == 0
+    k, k2 = np.searchsorted(r.times, [shadow.end, held[0].switch_time])
+    assert np.linalg.norm(r.velocity[0, k:k2], axis=-1).min() < 0.5  # it stopped before the station's plan
+    assert not r.verdict.contact and np.all(r.min_separation > r.separation_limit)
+    assert r.status is FlightStatus.ARRIVED
+
+
+def test_the_reflex_brakes_before_a_popup_too_close_for_the_planner(calm):
+    """A pop-up 1.9 m in front of UAV1 at 4.3 m/s: the station's stop reaches it only after the
+    latency and the link; UAV1's own reflex brakes 0.05 s after its sensor saw it, at three times
+    the acceleration, short of the pop-up (a breach of the 1 m clearance, no contact). With a
+    reflex one second late it hits the pop-up."""
+    t0 = 5.0
+    k = np.searchsorted(calm.times, t0)
+    p, v = calm.reference[0][k], calm.velocity[0][k]
+    u = v[:2] / np.hypot(v[0], v[1])
+    centre = p[:2] + u * (2.0 + 0.5 + 1.9)
+    dyn = Dynamics(events=(Event(t0, "appear", "popup", Cylinder(float(centre[0]), float(centre[1]), 2.0, "popup")),))
+
+    def clearance(r):
+        after = r.times >= t0
+        return float((np.hypot(r.actual[0, after, 0] - centre[0], r.actual[0, after, 1] - centre[1]) - 2.5).min())
+
+    r = fly(SMALL, events=dyn, seed=0, config=FIXED)
+    assert any(x.trigger == "UAV1 holds (reflex)" for x in r.replans) and r.holds >= 1
+    assert 0 < clearance(r) < 1.0 and r.status is FlightStatus.BREACH and not r.verdict.contact
+    (b,) = r.verdict.breaches
+    assert b.kind is BreachKind.CLEARANCE and b.other == "popup" and b.uav == 0 and t0 < b.time < t0 + 2
+    assert 4.0 < np.hypot(v[0], v[1]) < 4.6
+    late = fly(SMALL, events=dyn, seed=0, config=replace(FIXED, reflex_latency=1.0))
+    assert clearance(late) < 0 and late.status is FlightStatus.UNSAFE and late.verdict.contact
+
+
+def test_a_clearance_breach_is_reported_as_a_breach_not_as_arrived(tmp_path):
+    """A plan that passes a post 0.85 m away (the site requires 1 m) is flown as given: the team
+    arrives, and the verdict says breach, which UAV, where and when; flight.json too."""
+    from staghunt.io.flight_files import write_flight
+
+    sc = load_scenario(SMALL)
+    post = Cylinder(30.0, 15.0 + 1.0 + 0.5 + 0.85, 1.0, "post")
+    sc = replace(sc, world=replace(sc.world, cylinders=sc.world.cylinders + (post,)))
+    K = sc.solver.waypoints
+    x = np.linspace(5.0, 55.0, K + 2)[1:-1]
+    wp = np.stack([np.column_stack([x, np.full(K, 15.0), np.full(K, 12.0)]),
+                   np.column_stack([x, np.full(K, 23.0), np.full(K, 12.0)])])
+    r = fly(sc, waypoints=wp, seed=0, config=FIXED)
+    assert np.all(np.isfinite(r.arrival))  # every UAV reached its goal...
+    assert r.status is FlightStatus.BREACH and r.status.exit_code == 4  # ...but not "arrived"
+    (b,) = r.verdict.breaches
+    assert (b.kind, b.severity, b.uav, b.other) == (BreachKind.CLEARANCE, Severity.BREACH, 0, "post")
+    assert 0.75 < b.value < 0.95 and b.required == 1.0 and abs(b.position[0] - 30.0) < 1.0
+    assert r.message.startswith("breach: breach: UAV1's clearance to post")
+    write_flight(r, tmp_path)
+    summary = json.loads((tmp_path / "flight.json").read_text())
+    assert summary["status"] == "breach" and summary["exit_code"] == 4 and not summary["verdict"]["contact"]
+    assert summary["verdict"]["breaches"][0]["uav"] == "UAV1" and summary["verdict"]["breaches"][0]["other"] == "post"
+
+
+def test_receding_horizon_replans_with_nothing_sensed():
+    """A zigzag plan, nothing sensed: the receding horizon re-solves from the measured state every
+    second, warm-started, sends the faster plans it finds, and the team arrives long before the
+    zigzag would have; re-plans that find nothing better keep the plan."""
+    sc = load_scenario(SMALL)
+    K = sc.solver.waypoints
+    x = np.linspace(5.0, 55.0, K + 2)[1:-1]
+    zig = np.where(np.arange(K) % 2 == 0, 3.0, -3.0)
+    wp = np.stack([np.column_stack([x, 15.0 + zig, np.full(K, 12.0)]), np.column_stack([x, 23.0 + zig, np.full(K, 12.0)])])
+    r = fly(SMALL, waypoints=wp, seed=0, config=replace(FIXED, replan_rate=1.0))
+    recs = r.replans
+    assert recs and all(x.cause is Cause.RECEDING for x in recs)
+    assert np.allclose(np.diff([x.time for x in recs]), 1.0)  # at the set rate
+    sent = [x for x in recs if x.status is ReplanStatus.REPLANNED]
+    assert sent and all(x.certified and x.committed for x in sent)
+    assert {x.status for x in recs} == {ReplanStatus.REPLANNED, ReplanStatus.KEPT}
+    assert r.status is FlightStatus.ARRIVED and r.extra_time < -5.0  # faster than the zigzag by far
+    assert r.stops == 0 and r.holds == 0
+
+
+def test_replan_is_the_same_flight_on_one_core_and_on_two(popup):
+    """On two cores the moving and the from-rest solves run side by side, each with its own
+    generator: with a fixed latency the flight is the one flown when they run one after the other."""
+    from staghunt.flight import aside
+    from staghunt.flight.replan import PRELOAD
+    from staghunt.io.flight_files import flight_csv
+
+    worker = aside.rest_worker(wait=PRELOAD)  # on two cores the plans from rest are solved in a process of their own
+    assert worker is not None
+    before = worker.solves
+    one, two = (fly(SMALL, events=popup[1], seed=3, config=FIXED, threads=t) for t in (1, 2))
+    assert worker.solves > before
+    assert [x.status for x in one.replans] == [x.status for x in two.replans]
+    assert [x.nash_gaps for x in one.replans] == [x.nash_gaps for x in two.replans]
+    assert flight_csv(one) == flight_csv(two)
+
+
+def _start_rest_worker() -> None:
+    from staghunt.flight import aside
+    from staghunt.flight.replan import PRELOAD
+
+    assert aside.rest_worker(wait=PRELOAD) is not None
+
+
+def test_a_process_that_started_the_rest_worker_exits():
+    """A process that multiprocessing started (a pool's worker flying episodes) and that started
+    the plans-from-rest worker exits when its work is done."""
+    import multiprocessing
+
+    process = multiprocessing.get_context("spawn").Process(target=_start_rest_worker)
+    process.start()
+    process.join(timeout=120)
+    alive = process.is_alive()
+    if alive:
+        process.kill()
+    assert not alive and process.exitcode == 0
+
+
+def test_slewing_jib_that_would_cross_the_plan_makes_no_contact(calm):
+    jib = SlewingJib("jib", (30.0, 2.0), 25.0, 2.0, 0.0, 40.0, 0.0, 130.0, 12.0)
+    r = fly(SMALL, events=Dynamics(jibs=(jib,)), seed=0, config=FIXED)
+    crossing = moving_clearance(Dynamics(jibs=(jib,)), calm.reference, calm.times, np.array([0.5, 0.5]))[0]
+    assert crossing.min() < 0  # the plan made without the jib would hit it
+    assert r.min_clearance.min() > 0 and not r.verdict.contact
+
+
+def test_unreachable_goal_stops_in_sync_and_exits_3(tmp_path, capsys):
+    f = tmp_path / "ev.toml"
+    f.write_text("[[events]]\ntime = 3.0\nkind = 'appear'\nname = 'closed'\n"
+                 "polygon = [[44, 0], [60, 0], [60, 40], [44, 40]]\n", encoding="utf-8")
+    out = tmp_path / "out"
+    code = run_cli(["fly", SMALL, "--events", str(f), "--out", str(out), "--no-plots", "--seed", "0",
+                    "--latency", "0.3", "--replan-rate", "0"])
+    assert code == 3
+    summary = json.loads((out / "flight.json").read_text())
+    assert summary["status"] == "stopped" and summary["team"]["stops"] == 1 and summary["latency"] == {"fixed_s": 0.3}
+    replans = json.loads((out / "replans.json").read_text())["replans"]
+    assert replans[0]["status"] == "stop" and replans[0]["cause"] == "sensed"
+    rows = list(csv.DictReader((out / "flight.csv").open()))
+    last = [r for r in rows if float(r["t"]) == float(rows[-1]["t"])]
+    assert all(float(r["x"]) < 44 - 0.5 for r in last)  # stopped short of the closed zone
+    assert max(math.hypot(float(r["vx"]), float(r["vy"])) for r in last) < 0.2  # hovering
+    assert summary["team"]["min_clearance_m"] > 0
+
+
+def test_same_seed_same_flight_csv(calm):
+    from staghunt.io.flight_files import flight_csv
+
+    assert flight_csv(fly(SMALL, seed=0, config=FIXED)) == flight_csv(calm)
+
+
+def test_flight_files_and_fly_from_a_result_file(tmp_path, calm):
+    from staghunt.api import plan
+    from staghunt.io.flight_files import write_flight
+    from staghunt.io.result_json import write_result
+
+    files = write_flight(calm, tmp_path)
+    assert {p.name for p in files} == {"flight.csv", "replans.json", "flight.json"}
+    rows = list(csv.DictReader((tmp_path / "flight.csv").open()))
+    assert set(rows[0]) >= {"t", "uav", "x", "y", "z", "ref_x", "ref_y", "ref_z", "error"}
+    assert {r["uav"] for r in rows} == {"1", "2"}
+    summary = json.loads((tmp_path / "flight.json").read_text())
+    assert summary["status"] == "arrived" and summary["exit_code"] == 0 and summary["verdict"]["breaches"] == []
+    assert summary["verdict"]["margins_m"] == {"clearance": 1.0, "separation": 2.0, "ground": 1.0, "ceiling": 0.0}
+    assert summary["link"]["delay_s"] == 0.1 and summary["latency"] == {"fixed_s": 0.3}
+    assert summary["uavs"][0]["tracking_rms_m"] == pytest.approx(float(calm.tracking_rms[0]))
+    assert summary["uavs"][0]["min_ground_clearance_m"] > 1.0
+    scenario = load_scenario(SMALL)
+    result = plan(scenario, seed=2)
+    write_result(result, tmp_path / "result.json")
+    flown = fly(str(tmp_path / "result.json"), seed=2, config=FIXED)
+    assert np.allclose(flown.plan_waypoints, result.waypoints)
+
+
+def test_fly_refuses_bad_settings_before_simulating():
+    from staghunt.world.dynamic import Link
+
+    with pytest.raises(ValueError, match="latency"):
+        fly(SMALL, config=FlyConfig(latency=-1.0))
+    with pytest.raises(ValueError, match="latency"):
+        fly(SMALL, config=FlyConfig(latency="fast"))
+    with pytest.raises(ValueError, match="link"):
+        fly(SMALL, config=FlyConfig(link=Link(loss=1.5)))
+    with pytest.raises(ValueError, match="seed"):
+        fly(SMALL, seed=-3)
+
+
+def test_cli_latency_and_link_options_are_checked(tmp_path, capsys):
+    for bad, needle in ((["--latency", "soon"], "measured"), (["--link-loss", "2"], "link-loss")):
+        assert run_cli(["fly", SMALL, "--out", str(tmp_path / "o"), *bad]) == 2
+        assert needle in capsys.readouterr().err
+
+
+def test_hovering_team_sidesteps_a_known_motion():
+    from staghunt.engine import get_engine
+    from staghunt.flight.replan import Replanner
+
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    ref = ref.spliced(stop_piece(ref, 2.0, sc.vehicle))
+    hover = ref.state(np.array([8.0]))[0][:, 0]
+    truck = MovingCylinder("truck", 2.0, ((float(hover[0, 0]), 2.0), (float(hover[0, 0]), 38.0)), 3.0, start_time=8.0)
+    dyn = Dynamics(moving=(truck,))
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, FIXED, get_engine("numpy"), np.random.default_rng(0))
+    assert rp.acceptance.check(ref, 8.0, 18.0).windows  # hovering there, the truck hits
+    moved = rp.fallback.sidestep(ref, 8.0)
+    assert moved is not None
+    v = rp.acceptance.check(moved, moved.pieces[0].t0, 30.0)
+    assert v.safe and not v.windows and v.least_clearance > sc.costs.min_clearance
+    after = moved.state(np.array([20.0]))[0][:, 0]
+    assert np.allclose(after - after[0], hover - hover[0])  # moved as one rigid formation

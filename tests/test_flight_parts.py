@@ -1,0 +1,176 @@
+"""The flight room's parts on their own, without simulating vehicles: the radio link, and what a
+UAV decides on board (which plan it takes, when it holds, its reflex)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink
+from staghunt.flight.onboard import START_TOLERANCE, Onboard, hold_piece
+from staghunt.task import VehicleLimits
+from staghunt.trajectory.quintic import Reference, timed_path
+from staghunt.trajectory.team import Track
+from staghunt.world import Cylinder
+from staghunt.world.dynamic import Link
+
+LIMITS = VehicleLimits()
+
+
+def test_the_link_delays_jitters_and_loses_as_configured_and_from_its_seed():
+    def run(seed: int):
+        radio = RadioLink(Link(0.1, 0.03, 0.05), np.random.default_rng(seed), (Outage(1, 5.0, 6.0),))
+        for k in range(20000):
+            radio.send(k * 0.001, GROUND, 0, k)
+        for k in range(100):
+            radio.send(5.0 + 0.01 * k, GROUND, 1, -k)  # in UAV 1's radio shadow
+        return radio, radio.deliver(1e9)
+
+    radio, got = run(7)
+    assert radio.sent == 20100 and all(dst == 0 for dst, _ in got)  # nothing through the shadow
+    sent_at = {m: m * 0.001 for _, m in got}
+    assert 0.04 < 1 - len(got) / 20000 < 0.06  # 5 % lost
+    # delays: 0.1 + 0.03 z, z clipped to [-3, 3]; delivered in arrival order, so out of send order
+    order = [m for _, m in got]
+    assert order != sorted(order)
+    again = run(7)[1]
+    assert [m for _, m in again] == order  # the same seed, the same messages lost and late
+    radio = RadioLink(Link(0.1, 0.03, 0.0), np.random.default_rng(1))
+    for k in range(5000):
+        radio.send(0.0, GROUND, 0, k)
+    assert radio.deliver(0.1 - 3 * 0.03 - 1e-6) == []
+    assert len(radio.deliver(0.1 + 3 * 0.03 + 1e-6)) == 5000 and radio.worst_delay == pytest.approx(0.19)
+    del sent_at
+
+
+def _plan(y: float = 0.0, t0: float = 0.0) -> Reference:
+    """Two UAVs flying east from x = 0 along y and y + 10."""
+    line = np.array([[0.0, y, 10.0], [30.0, y, 10.0], [60.0, y, 10.0]])
+    return Reference((timed_path(np.stack([line, line + [0.0, 10.0, 0.0]]), t0, LIMITS),))
+
+
+def _onboard(ref: Reference, n: int = 0) -> Onboard:
+    return Onboard(n, Track(((0.0, ref, n),)), LIMITS, 1.0, 0.05, 2.0, 1.0, np.array([0.5, 0.5]))
+
+
+def _spliced(ref: Reference, t_s: float, dy: float) -> Reference:
+    """A plan that starts at ``t_s`` where ``ref`` is (moved ``dy`` aside) and bends away."""
+    s = ref.state(np.array([t_s]))[:, :, 0]
+    here = s[0] + [0.0, dy, 0.0]
+    pts = np.stack([here, here + [10.0, 5.0, 0.0], here + [30.0, 5.0, 0.0]], axis=1)
+    return Reference((timed_path(pts, t_s, LIMITS, s[1], s[2]),))
+
+
+def test_a_plan_in_time_from_where_the_uav_is_is_taken_at_its_start():
+    ref = _plan()
+    uav = _onboard(ref)
+    new = _spliced(ref, 3.0, 0.0)
+    acks: list[Ack] = []
+    pos = ref.state(np.array([2.5]))[0][0, 0]
+    uav.receive(2.5, PlanMessage(1, new, 3.0, (0, 1)), pos, acks)
+    assert acks == [Ack(0, 1, True)] and uav.pending is not None
+    uav.step(2.99, 0.01)
+    assert uav.version == 0  # the old plan stays valid until the start
+    uav.step(3.0, 0.01)
+    assert uav.version == 1 and uav.pending is None
+    t = np.array([4.0])
+    assert np.allclose(uav.track.state(t)[0][0, 0], new.state(t)[0][0, 0])
+    uav.receive(3.1, PlanMessage(1, new, 3.0, (0, 1)), pos, acks)  # a copy: acknowledged again
+    assert acks[-1] == Ack(0, 1, True)
+
+
+def test_a_late_plan_or_one_from_elsewhere_is_refused_and_the_uav_holds_on_its_old_one():
+    """A plan that opens with a path and arrives after its start, or whose start lies away from
+    the UAV, is refused; the UAV does not switch, and since its team-mates may fly the plan it
+    refused, it holds on its old path (the station re-plans on the refusal). A stop is taken
+    late."""
+    from staghunt.trajectory.quintic import stop_piece
+
+    ref = _plan()
+    for message, t, why in ((PlanMessage(1, _spliced(ref, 3.0, 0.0), 3.0, (0, 1)), 3.05, "late"),
+                            (PlanMessage(1, _spliced(ref, 3.0, START_TOLERANCE + 0.3), 3.0, (0, 1)), 2.5, "start")):
+        uav = _onboard(ref)
+        acks: list[Ack] = []
+        uav.receive(t, message, ref.state(np.array([t]))[0][0, 0], acks)
+        assert acks == [Ack(0, 1, False, why)] and uav.pending is None
+        uav.step(3.0, 0.01)
+        assert uav.version == 0 and uav.track.segments[-1][1] is ref and uav.hold is None
+        uav.step(3.02, 0.01)
+        assert uav.version == 0 and uav.hold == (3.02, HoldReason.MISSED)
+        assert uav.track.segments[-1][1].pieces[0].base.segments[0][1] is ref  # a stop of its old path
+    uav = _onboard(ref)
+    stop = Reference((stop_piece(ref, 4.0, LIMITS),))
+    acks = []
+    uav.receive(4.1, PlanMessage(2, stop, 4.0, (0, 1)), ref.state(np.array([4.1]))[0][0, 0], acks)
+    assert acks == [Ack(0, 2, True)]
+
+
+def test_a_missed_plan_or_silence_makes_the_uav_hold_and_the_station_rebuilds_the_same_hold():
+    ref = _plan()
+    uav = _onboard(ref)
+    pos = ref.state(np.array([2.0]))[0][0, 0]
+    uav.receive(2.0, Heartbeat(3, 2.5), pos, [])  # plan 3 starts at 2.5; it never came
+    uav.step(2.5, 0.01)
+    assert uav.hold is None  # it may still come
+    uav.step(2.52, 0.01)
+    assert uav.hold == (2.52, HoldReason.MISSED) and uav.holds == 1
+    rest = uav.track.state(np.array([10.0]))
+    assert np.allclose(rest[1], 0.0)  # at rest where it braked, on its own path
+    assert abs(rest[0][0, 0, 1]) < 1e-9 and rest[0][0, 0, 0] < ref.state(np.array([5.0]))[0][0, 0, 0]
+    # the station rebuilds the same hold from the telemetry (since, reason) on what it believes
+    again = Track(((0.0, ref, 0),))
+    again = again.then(2.52, hold_piece(again, 2.52, LIMITS, HoldReason.MISSED), 0)
+    t = np.linspace(2.0, 6.0, 41)
+    assert np.array_equal(again.state(t), uav.track.state(t))
+    quiet = _onboard(ref)
+    quiet.step(1.0, 0.01)
+    assert quiet.hold is None
+    quiet.step(1.01, 0.01)  # heard nothing for plan_timeout (1 s)
+    assert quiet.hold == (1.01, HoldReason.TIMEOUT)
+    braked = hold_piece(Track(((0.0, ref, 0),)), 5.0, LIMITS, HoldReason.MISSED).pieces[0]
+    gentle = hold_piece(Track(((0.0, ref, 0),)), 5.0, LIMITS, HoldReason.TIMEOUT).pieces[0]
+    assert braked.brake and not gentle.brake and braked.duration < gentle.duration / 2
+
+
+def test_the_reflex_brakes_before_a_seen_obstacle_unless_the_coming_plan_avoids_it():
+    ref = _plan()
+    uav = _onboard(ref)
+    at = ref.state(np.array([4.0]))[0][0, 0]
+    v = float(np.linalg.norm(ref.state(np.array([3.0]))[1][0, 0]))
+    uav.seen = {"box": Cylinder(float(at[0]), 0.0, 1.5, "box")}
+    uav.reflex(0.0)
+    assert uav.brake_at is None  # far ahead: the planner has time
+    grid = np.arange(0.0, 4.0, 0.001)
+    inside = np.hypot(ref.state(grid)[0][0, :, 0] - at[0], ref.state(grid)[0][0, :, 1]) - 1.5 - 0.5 < 1.0 - 0.1
+    t_in = grid[np.argmax(inside)]  # the reference comes within the required clearance (less 0.1 m)
+    window = 0.05 + v / (2 * 9.0 * 0.9) + 0.3  # latency, braking, margin
+    t = t_in - window - 0.1
+    uav.reflex(t)
+    assert uav.brake_at is None
+    uav.reflex(t + 0.15)
+    assert uav.brake_at == pytest.approx(t + 0.2)  # one reflex latency later
+    uav.heard = t  # the station is heard
+    uav.step(t + 0.2, 0.01)
+    assert uav.hold == (pytest.approx(t + 0.2), HoldReason.REFLEX)
+    stop = uav.track.state(np.array([t + 5.0]))[0][0, 0]
+    assert np.hypot(stop[0] - at[0], stop[1]) - 1.5 - 0.5 > 0.0  # it stops short of the box
+    calm = _onboard(ref)  # a plan that swerves round is pending: no reflex
+    calm.seen = dict(uav.seen)
+    acks: list[Ack] = []
+    calm.receive(t, PlanMessage(1, _spliced(ref, t + 0.1, 0.0), t + 0.1, (0, 1)), ref.state(np.array([t]))[0][0, 0], acks)
+    assert acks[-1].ok
+    calm.reflex(t + 0.05)
+    assert calm.brake_at is None
+
+
+def test_the_reflex_keeps_off_a_holding_team_mate():
+    ref = _plan()
+    uav = _onboard(ref)
+    ahead = ref.state(np.array([3.0]))[0][0, 0]
+    uav.receive(2.0, Beacon(1, 2.0, ahead + [0.0, 1.0, 0.0], True), ref.state(np.array([2.0]))[0][0, 0], [])
+    uav.reflex(2.0)
+    assert uav.brake_at is not None  # its path runs into the team-mate that holds
+    other = _onboard(ref)
+    other.receive(2.0, Beacon(1, 2.0, ahead + [0.0, 1.0, 0.0], False), ref.state(np.array([2.0]))[0][0, 0], [])
+    other.reflex(2.0)
+    assert other.brake_at is None  # a team-mate flying its plan reserves nothing

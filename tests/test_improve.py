@@ -1,0 +1,94 @@
+"""The game's loops of a re-plan (solvers/improve.py): best-response rounds that stop at a
+deadline with the plan they have, and the certify-and-improve loop."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from staghunt import load_scenario
+from staghunt.costs import CostModel
+from staghunt.engine import get_engine
+from staghunt.solvers.game import best_response_rounds
+from staghunt.solvers.improve import Deadline, anytime_rounds, certify_and_improve
+from staghunt.solvers.response import CertifyOptions, check_search
+
+SMALL = str(Path(__file__).parent / "data" / "flight_small.toml")
+
+
+def _zigzag(sc):
+    """A zigzag plan ``(N, K, 3)`` (x, y, h) of the small site: feasible, no equilibrium."""
+    K = sc.solver.waypoints
+    x = np.linspace(5.0, 55.0, K + 2)[1:-1]
+    zig = np.where(np.arange(K) % 2 == 0, 2.0, -2.0)
+    return np.stack([np.column_stack([x, 15.0 + zig, np.full(K, 12.0)]),
+                     np.column_stack([x, 23.0 + zig, np.full(K, 12.0)])])
+
+
+def test_without_a_deadline_the_rounds_are_the_games():
+    sc = load_scenario(SMALL)
+    model, engine = CostModel.from_scenario(sc), get_engine("numba")
+    settings = sc.solver.with_(particles=40, iterations=30)
+    budget = settings.particles * (settings.iterations + 1) * sc.n_uavs
+    a = best_response_rounds(model, _zigzag(sc), settings, np.random.default_rng(3), engine.run_swarm,
+                             engine.evaluate, budget, 0, None, repair=True)
+    b = anytime_rounds(model, _zigzag(sc), settings, np.random.default_rng(3), engine.run_swarm, engine.evaluate,
+                       budget, Deadline(), repair=True)
+    assert np.array_equal(a.plan, b.plan) and a.evaluations == b.evaluations and a.converged == b.converged
+
+
+def test_a_deadline_stops_the_rounds_with_the_plan_they_have():
+    sc = load_scenario(SMALL)
+    model, engine = CostModel.from_scenario(sc), get_engine("numba")
+    settings = sc.solver.with_(particles=60, iterations=60)
+    budget = 50 * settings.particles * (settings.iterations + 1) * sc.n_uavs  # far more than the deadline allows
+    warm = _zigzag(sc)
+    t0 = time.perf_counter()
+    out = anytime_rounds(model, warm, settings, np.random.default_rng(3), engine.run_swarm, engine.evaluate,
+                         budget, Deadline.after(0.0), repair=True)
+    took = time.perf_counter() - t0
+    assert not out.converged and out.evaluations < budget / 10
+    assert took < 5.0  # one reply, not the budget
+    J = engine.evaluate(model, out.plan[None]).total[0]
+    assert np.allclose(J, out.costs)  # the costs are the plan's
+    start = engine.evaluate(model, warm[None]).total[0]
+    assert np.array_equal(out.plan[1], warm[1])  # stopped after UAV 1's reply: UAV 2 has not replied
+    assert J[0] < start[0] and not np.array_equal(out.plan[0], warm[0])  # UAV 1's better reply was kept
+
+
+def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
+    """A zigzag plan is no equilibrium: its first certificate finds better replies. With
+    certificate rounds the replies are adopted (``accept`` flies them) and certified again; the
+    plan kept has a smaller largest gap than the first, and is one ``accept`` flew. With none
+    the plan stays as it was. Without time for a certificate, none is made."""
+    sc = load_scenario(SMALL)
+    engine = get_engine("numba")
+    options = CertifyOptions(100, 60, 0.01)
+    search = check_search(sc.solver, options, "test")
+    plan = _zigzag(sc)
+    flown_plans: list[np.ndarray] = []
+
+    def accept(p: np.ndarray) -> str:
+        flown_plans.append(p.copy())
+        return f"flown {len(flown_plans)}"
+
+    gaps = {}
+    for rounds in (0, 4):
+        flown_plans.clear()
+        out = certify_and_improve(sc, plan, "first", accept, search, options, rounds, np.random.default_rng(5),
+                                  engine.run_swarm, engine.evaluate, engine.evaluate, np.pi / 4)
+        assert out.certificate is not None and out.spent >= sum(u.evaluations - u.taken for u in out.certificate.uavs)
+        gaps[rounds] = out.certificate.max_relative_gap
+        if rounds == 0:
+            assert out.flown == "first" and np.array_equal(out.plan, plan) and out.certificates == 1
+            assert out.certificate.max_relative_gap > 0.01
+        else:
+            assert out.flown != "first"  # replies (or the local searches before) adopted and flown
+            assert any(np.array_equal(out.plan, p) for p in flown_plans)
+    assert gaps[4] < gaps[0]
+    late = certify_and_improve(sc, plan, "first", accept, search, options, 4, np.random.default_rng(5),
+                               engine.run_swarm, engine.evaluate, engine.evaluate, np.pi / 4,
+                               deadline=Deadline(time.perf_counter() - 1.0))
+    assert late.certificate is None and late.certificates == 0 and "deadline" in late.notes[0]
