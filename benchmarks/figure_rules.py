@@ -25,7 +25,8 @@ ALLOW: dict[str, list[str]] = {
     ],
     "README.md": [
         "within 1 cm over 10 s",    # the tolerance of tests/test_vehicles.py
-        "latency budget, 0.3 s",    # the re-planner's fixed latency budget (a setting)
+        "0.2 s for 3 UAVs, 1 s for 8",  # the re-planner's default deadlines (settings)
+        "the next 20 s of the route",   # the receding horizon's default length (a setting)
     ],
     "docs/model.md": [
         "(10 % of",                 # the rigid seed's share of the budget
@@ -34,7 +35,12 @@ ALLOW: dict[str, list[str]] = {
         "(default 1 %)",            # the certificate's epsilon
         "within 1 cm over 10 s",    # the tolerance of tests/test_vehicles.py
         "horizon (10 s)",           # the re-planner's horizon
-        "(0.3 s; fixed",            # its latency budget
+        "latency 0.2 s for up to three UAVs plus 0.16 s per further UAV",  # the default deadline
+        "default 0.1 s, 0.03 s, 1 %",   # the link's default delay, jitter and loss (settings)
+        "(1 s), braking at three",  # a UAV's hold timeout (a setting)
+        "reflex latency (0.05 s)",  # the onboard reflex's latency (a setting)
+        "needs plus 0.3 s",         # the reflex's look-ahead margin (a setting)
+        "20 s of the route ahead",  # the receding horizon (a setting)
         "1-4 times the motion's size",  # the sidestep's search
         "exposure 1/1000 s",        # a camera's default exposure
         "falls 10 % of",            # survey lines' extension rule

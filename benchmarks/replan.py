@@ -250,7 +250,7 @@ def main() -> int:
     if any(sum(e["kind"] == k for e in have) < n for k, n in counts.items()):
         print("building the episodes", file=sys.stderr)
         have, plans = replan_episodes.build({k: max(n, sum(e["kind"] == k for e in have)) for k, n in counts.items()})
-        replan_episodes.save(args.episodes_file, have, plans)
+        replan_episodes.save(args.episodes_file, have, plans, started)
     pick = [e for e in have if (e["kind"] == "scenario2" and e["episode"] < counts["scenario2"])
             or (e["kind"] == "site_wedge" and e["episode"] < args.wedge_episodes)]
     if args.solve_only:

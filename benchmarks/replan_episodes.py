@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import provenance
 
 
 def _reference(scenario: Any, waypoints: np.ndarray) -> Any:
@@ -205,9 +206,12 @@ def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]
     return episodes, plans
 
 
-def save(path: Path, episodes: list[dict[str, Any]], plans: dict[str, Any]) -> None:
+def save(path: Path, episodes: list[dict[str, Any]], plans: dict[str, Any], started: provenance.Started) -> None:
+    """Write the episodes and the plans they fly, stamped with when, where and by which code they
+    were built (``started``)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps({"plans": plans, "episodes": episodes}) + "\n")
+    data = provenance.stamped(started, {"plans": plans, "episodes": episodes})
+    path.write_text(json.dumps(data) + "\n")
 
 
 def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:

@@ -331,18 +331,21 @@ def _judge(scenario: Scenario, final: Scenario, A: np.ndarray, T: np.ndarray, lo
     one safety judge (:func:`staghunt.safety.judge`): the site as it truly was at each step (an
     obstacle that appeared counts from its time on), the scenario's required margins; contact
     (a body touched an obstacle, a team-mate or the ground) or a breach of a required margin
-    (clearance, separation, ground, ceiling). A lost UAV counts until it has landed."""
+    (clearance, separation, ground, ceiling). A lost UAV counts until it lands: once it comes down
+    within its body and the required ground margin of the terrain (a landing is meant to reach the
+    ground), it has left the team."""
     from staghunt.safety import Margins, Scene, judge
     from staghunt.world.dynamic import Dynamics
 
     names = [u.name for u in scenario.team]
     radius = np.array([u.radius for u in scenario.team])
+    margins = Margins.required(scenario)
     on = np.ones(A.shape[:2], dtype=bool)
     for k, (t_lost, at) in lost.items():
         g = float(np.asarray(scenario.world.terrain.height(at[:1], at[1:2]))[0])
-        on[k] = ~((T > t_lost) & (A[k, :, 2] - g < 0.5))
+        on[k] = ~((T > t_lost) & (A[k, :, 2] - g < radius[k] + margins.ground + 0.5))
     verdict = judge(Scene.true(scenario.world, Dynamics(events=tuple(appeared))), radius, T, A,
-                    Margins.required(scenario), names, active=on)
+                    margins, names, active=on)
     return (verdict.min_separation, scenario.costs.safe_distance + 2 * radius, verdict.min_clearance,
             verdict.problems(names))
 

@@ -97,14 +97,8 @@ class GroundStation:
 
     @property
     def team(self) -> RowTeam:
-        """What the station believes every UAV flies, the newest plan sent included from its
-        start for every UAV that has not refused it (it will switch to it before anything the
-        station sends now can start)."""
-        p = self.plans.get(self.released[0])
-        acks = self.acks.get(self.released[0], {}) if p is not None else {}
-        tracks = tuple(tr.then(p.splice, p.plan, n) if p is not None and self.taken[n] < p.version
-                       and acks.get(n) is not False else tr for n, tr in enumerate(self.tracks))
-        return RowTeam(tracks, (0,) * self.n)
+        """What the station believes every UAV flies."""
+        return RowTeam(tuple(self.tracks), (0,) * self.n)
 
     def _took(self, n: int, version: int) -> None:
         if version > self.taken[n] and version in self.plans:
