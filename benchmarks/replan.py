@@ -3,7 +3,7 @@
     python benchmarks/replan.py --jobs 2                      # 100 scenario-2 + 20 site_wedge episodes, link 100 ms / 30 ms / 1 %
     python benchmarks/replan.py --jobs 2 --link-delay 0.3 --link-loss 0.05 --tag lossy   # the same episodes, a worse link
     python benchmarks/replan.py --episodes 10 --wedge-episodes 2 --tag smoke             # a smoke run
-    python benchmarks/replan.py --summarise results/replan_before.json                   # the table of a saved run
+    python benchmarks/replan.py --summarise results/replan_lossy.json                    # the table of a saved run
     python benchmarks/replan.py --solve-only --episodes 30 --wedge-episodes 10           # first re-plans alone, both cores
 
 The episodes (benchmarks/replan_episodes.py: a site vehicle or the crane's jib, then a pop-up
