@@ -101,10 +101,8 @@ def worker_solver(spec: dict[str, Any]) -> dict[str, Any]:
     model = CostModel.from_scenario(scenario)
     problem = team_problem(model, settings.waypoints, settings.velocity_fraction, "players")
     engine = get_engine(spec["engine"], spec.get("threads"))
-    prepare = getattr(engine, "prepare", None)
     t0 = time.perf_counter()
-    if prepare is not None:
-        prepare()
+    engine.prepare()
     load_s = time.perf_counter() - t0
     times, outs = [], []
     for rep in range(spec.get("repeat", 1)):
@@ -112,12 +110,18 @@ def worker_solver(spec: dict[str, Any]) -> dict[str, Any]:
         out = engine.run_swarm(problem, settings, np.random.default_rng(spec.get("seed", 0) + rep))
         times.append(time.perf_counter() - t0)
         outs.append(out)
+    threads_used: dict[int, int] = {}
+    if engine.name == "numba":  # the thread counts the compiled engine chose
+        from staghunt.engine.numba_engine import NumbaEngine
+
+        assert isinstance(engine, NumbaEngine)
+        threads_used = engine.last_threads
     best = min(times)
     evals = model.n_uavs * settings.particles * (settings.iterations + 1)
     return {
         "engine": engine.name,
         "threads": spec.get("threads"),
-        "threads_used": getattr(engine, "last_threads", {}),
+        "threads_used": threads_used,
         "n": model.n_uavs,
         "particles": settings.particles,
         "iterations": settings.iterations,

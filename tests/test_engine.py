@@ -580,7 +580,7 @@ def test_deviation_costs_match_the_full_evaluation(n_uavs, radii, terrain):
         paths[1] = plan_n[mate] + np.array([0.5 * (limits[n] + limits[mate]) + 0.25, 0.0, 0.0])
         paths[2, :, 2] = -1.0  # below ground
         got = engine.deviations(model, plan_n, n)(paths)
-        want = _own_costs(model, plan_n, n, paths, engine.evaluate)
+        want = _own_costs(model, plan_n, n, paths, engine)
         assert np.array_equal(np.isinf(got), np.isinf(want))
         assert np.array_equal(got, want)
         assert np.isinf(got).any() and np.isfinite(got).any()
@@ -620,8 +620,8 @@ def test_compiled_polish_is_the_reference_loop(n_uavs, terrain):
         if evaluate(model, plan_[None]).total_violation[0] != 0:
             continue
         for budget in (6 * K, 6 * K + 1, 500, 4000):
-            want, spent_want = polish(model, plan_, n, budget, engine.evaluate, compiled=False)
-            got, spent_got = polish(model, plan_, n, budget, engine.evaluate)
+            want, spent_want = polish(model, plan_, n, budget, engine, compiled=False)
+            got, spent_got = polish(model, plan_, n, budget, engine)
             assert spent_got == spent_want
             np.testing.assert_array_equal(got, want)
             compared += 1
@@ -655,8 +655,8 @@ def test_compiled_team_search_is_the_reference_loop(n_uavs, terrain):
             continue
         for search in (team_slide, team_polish):
             for budget in (n_uavs * 31, n_uavs * 200, 20_000):
-                want, spent_want = search(model, plan_, budget, engine.evaluate, compiled=False)
-                got, spent_got = search(model, plan_, budget, engine.evaluate)
+                want, spent_want = search(model, plan_, budget, engine, compiled=False)
+                got, spent_got = search(model, plan_, budget, engine)
                 assert spent_got == spent_want
                 np.testing.assert_array_equal(got, want)
                 assert (got is plan_) == (want is plan_)
@@ -682,10 +682,10 @@ def test_team_search_runs_the_python_loop_while_its_kernel_compiles(monkeypatch)
     monkeypatch.setattr(compilation, "_loaded", compilation._loaded - {"team_search"})
     J = engine.evaluate(model, base[None]).total[0]
     assert engine.team_search(model, base, J, 0, 0) is None and not compilation.team_search_ready()
-    meanwhile = team_slide(model, base, 5000, engine.evaluate)
+    meanwhile = team_slide(model, base, 5000, engine)
     compiling.set()  # the helper has written it to the cache
     assert engine.team_search(model, base, J, 0, 0) is not None and "team_search" in compilation._loaded
-    compiled = team_slide(model, base, 5000, engine.evaluate)
+    compiled = team_slide(model, base, 5000, engine)
     assert meanwhile[1] == compiled[1] and np.array_equal(meanwhile[0], compiled[0])
     assert meanwhile[0] is not base
 
@@ -783,7 +783,7 @@ def test_callers_reach_the_kernel_entries_through_their_addresses(monkeypatch):
             NumbaEngine(threads=threads).run_swarm(problem, SolverSettings(particles=particles, iterations=2,
                                                                          waypoints=4), np.random.default_rng(0))
     with pytest.raises(RuntimeError, match="no compiled team_pass"):
-        polish(model, np.array(plan_), 0, 100, NumbaEngine(threads=1).evaluate)
+        polish(model, np.array(plan_), 0, 100, NumbaEngine(threads=1))
 
 
 def test_named_columns_fill_the_kernel_rows():

@@ -174,10 +174,10 @@ def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduc
     _, game, _ = reduced
     engine = get_engine("numba", threads=1)
     request = check_certify(scenario1, game.waypoints, CertifyOptions(particles=60, iterations=20), seed=4)
-    one = certify_plan(request, runner=engine.run_swarm, workers=1, evaluator=engine.evaluate)
+    one = certify_plan(request, runner=engine.run_swarm, workers=1, engine=engine)
     assert sum(u.evaluations for u in one.uavs) > 3 * 60 * 21  # the local searches ran
     for workers in (2, 3):
-        many = certify_plan(request, runner=engine.run_swarm, workers=workers, evaluator=engine.evaluate)
+        many = certify_plan(request, runner=engine.run_swarm, workers=workers, engine=engine)
         fields = [(u.current, u.best, u.gap, u.relative, u.roundtrip_error, u.evaluations, u.taken)
                   for u in many.uavs]
         assert fields == [(u.current, u.best, u.gap, u.relative, u.roundtrip_error, u.evaluations, u.taken)
@@ -304,11 +304,11 @@ def test_local_pass_side_by_side_makes_the_same_decisions(model1, reduced):
     from staghunt.engine import get_engine
     from staghunt.solvers.local import local_pass
 
-    ev = get_engine("numba", threads=1).evaluate
+    ev = get_engine("numba", threads=1)
     _, game, _ = reduced
     wp = np.array(game.waypoints)
     wp[1, 3:7, 2] += 6.0  # UAV 2 climbs 6 m out of the formation: its local search gains
-    J = ev(model1, wp[None]).total[0]
+    J = ev.evaluate(model1, wp[None]).total[0]
     one = local_pass(model1, wp, J, 3000, 0.01, ev)
     two = local_pass(model1, wp, J, 3000, 0.01, ev, workers=2)
     assert one.gains[1] > 0.01  # taken mid-pass: UAV 3 searches again from the new plan
@@ -334,7 +334,7 @@ def test_the_certificate_takes_the_local_searches_made_just_before(scenario1, mo
     options = CertifyOptions(particles=60, iterations=20)
     budget = int(response.LOCAL_SHARE * 60 * 21)  # the certificate's local search of one UAV
     wp = np.array(game.waypoints)
-    done = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget, 0.01, engine.evaluate)
+    done = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget, 0.01, engine)
     assert not done.gains.any() and len(done.searches) == 3  # an equilibrium: nothing taken
     request = check_certify(scenario1, wp, options, seed=3)
     calls = []
@@ -345,7 +345,7 @@ def test_the_certificate_takes_the_local_searches_made_just_before(scenario1, mo
         return original(*args, **kwargs)
 
     monkeypatch.setattr(response, "polish", counted)
-    kw = dict(runner=engine.run_swarm, evaluator=engine.evaluate)
+    kw = dict(runner=engine.run_swarm, engine=engine)
     alone = certify_plan(request, **kw)
     made = len(calls)
     taken = certify_plan(request, **kw, searched=done.searches)
@@ -355,7 +355,7 @@ def test_the_certificate_takes_the_local_searches_made_just_before(scenario1, mo
     assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(alone.uavs, taken.uavs))
     assert [u.taken for u in taken.uavs] == [m.evaluations for m in done.searches]
     assert all(u.taken == 0 for u in alone.uavs)
-    other = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget + 1, 0.01, engine.evaluate)
+    other = local_pass(model1, wp, engine.evaluate(model1, wp[None]).total[0], budget + 1, 0.01, engine)
     before = len(calls)
     certify_plan(request, **kw, searched=other.searches)
     assert len(calls) - before == made

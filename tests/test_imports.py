@@ -292,3 +292,49 @@ def test_no_import_cycle_between_the_modules_of_the_flight_room():
     function by name instead of importing the re-planner that imports it)."""
     for package in ("flight", "safety", "trajectory"):
         assert cycles(module_graph_within(package)) == [], package
+
+
+ENGINE_WORDS = ("engine", "evaluator", "resolved", "runner", "solo", "certifier")
+"""Words that name an engine (or a callable of one) in the source."""
+
+
+def probing(source: str) -> list[str]:
+    """Where ``source`` probes an engine instead of using its contract
+    (:class:`staghunt.engine.Engine`): any ``__self__`` (a bound method's owner), and any
+    ``getattr``/``hasattr`` asking for a capability of the contract (its methods, ``run_swarm``)
+    or asking an object whose name says engine (``line: code``, by line)."""
+    from staghunt.engine import Engine
+
+    members = {m for m in dir(Engine) if not m.startswith("_")} | {"run_swarm"}
+    found = []
+    for node in ast.walk(ast.parse(source)):
+        if isinstance(node, ast.Attribute) and node.attr == "__self__":
+            found.append(node)
+        elif (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr")
+              and len(node.args) >= 2):
+            owner, what = ast.unparse(node.args[0]).lower(), node.args[1]
+            asks = isinstance(what, ast.Constant) and what.value in members
+            if asks or any(w in owner for w in ENGINE_WORDS):
+                found.append(node)
+        elif isinstance(node, ast.Constant) and node.value == "__self__":
+            found.append(node)
+    return [f"{n.lineno}: {ast.unparse(n)}" for n in sorted(found, key=lambda n: (n.lineno, n.col_offset))]
+
+
+def test_nothing_probes_an_engine_for_its_capabilities():
+    """Solvers and callers use the engine's declared contract (``prepare``, ``team_search``,
+    ``deviations``, ...; the NumPy reference answers each): no ``__self__`` to recover an engine
+    from a bound method, no ``getattr``/``hasattr`` on an engine."""
+    found = {str(p.relative_to(ROOT)): hits for p in sorted(ROOT.rglob("*.py"))
+             if (hits := probing(p.read_text(encoding="utf-8")))}
+    assert found == {}
+
+
+def test_the_probing_check_finds_probing():
+    source = ('engine = getattr(evaluator, "__self__", None)\n'
+              'fast = engine.deviations(m) if hasattr(engine, "deviations") else None\n'
+              'prepare = getattr(resolved, "prepare", None)\n'
+              'threads = getattr(engine, "threads", 1)\n'
+              'run = getattr(x, "run_swarm")\n'
+              'ok = getattr(args, "threads", 0), getattr(result.status, "value", 1), hasattr(table, "to_pydict")\n')
+    assert [h.split(":")[0] for h in probing(source)] == ["1", "1", "2", "3", "4", "5"]

@@ -33,8 +33,8 @@ def test_without_a_deadline_the_rounds_are_the_games():
     settings = sc.solver.with_(particles=40, iterations=30)
     budget = settings.particles * (settings.iterations + 1) * sc.n_uavs
     a = best_response_rounds(model, _zigzag(sc), settings, np.random.default_rng(3), engine.run_swarm,
-                             engine.evaluate, budget, 0, None, repair=True)
-    b = anytime_rounds(model, _zigzag(sc), settings, np.random.default_rng(3), engine.run_swarm, engine.evaluate,
+                             engine, budget, 0, None, repair=True)
+    b = anytime_rounds(model, _zigzag(sc), settings, np.random.default_rng(3), engine.run_swarm, engine,
                        budget, Deadline(), repair=True)
     assert np.array_equal(a.plan, b.plan) and a.evaluations == b.evaluations and a.converged == b.converged
 
@@ -46,7 +46,7 @@ def test_a_deadline_stops_the_rounds_with_the_plan_they_have():
     budget = 50 * settings.particles * (settings.iterations + 1) * sc.n_uavs  # far more than the deadline allows
     warm = _zigzag(sc)
     t0 = time.perf_counter()
-    out = anytime_rounds(model, warm, settings, np.random.default_rng(3), engine.run_swarm, engine.evaluate,
+    out = anytime_rounds(model, warm, settings, np.random.default_rng(3), engine.run_swarm, engine,
                          budget, Deadline.after(0.0), repair=True)
     took = time.perf_counter() - t0
     assert not out.converged and out.evaluations < budget / 10
@@ -78,7 +78,7 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
     for rounds in (0, 4):
         flown_plans.clear()
         out = certify_and_improve(sc, plan, "first", accept, search, options, rounds, np.random.default_rng(5),
-                                  engine.run_swarm, engine.evaluate, engine.evaluate, np.pi / 4)
+                                  engine.run_swarm, engine, engine, np.pi / 4)
         assert out.certificate is not None and out.spent >= sum(u.evaluations - u.taken for u in out.certificate.uavs)
         gaps[rounds] = out.certificate.max_relative_gap
         if rounds == 0:
@@ -89,6 +89,6 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
             assert any(np.array_equal(out.plan, p) for p in flown_plans)
     assert gaps[4] < gaps[0]
     late = certify_and_improve(sc, plan, "first", accept, search, options, 4, np.random.default_rng(5),
-                               engine.run_swarm, engine.evaluate, engine.evaluate, np.pi / 4,
+                               engine.run_swarm, engine, engine, np.pi / 4,
                                deadline=Deadline(time.perf_counter() - 1.0))
     assert late.certificate is None and late.certificates == 0 and "deadline" in late.notes[0]

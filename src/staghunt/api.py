@@ -110,8 +110,7 @@ def plan(
                              engine, threads, certify, stop=stop)
     scenario, method, seed, settings = request.scenario, request.method, request.seed, request.settings
     certify, stop, resolved = request.certify, request.stop, request.engine
-    prepare = getattr(resolved, "prepare", None)
-    compile_s = float(prepare()) if callable(prepare) else 0.0
+    compile_s = float(resolved.prepare())
     checks: list[tuple[np.ndarray, Certificate, float]] = []
 
     def certificate_of(wp: np.ndarray, searched: Sequence[LocalSearch] = ()) -> Certificate:
@@ -131,7 +130,7 @@ def plan(
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
     out = METHODS[method](MethodRun(scenario, settings, rng, progress, resolved.run_swarm,
-                                    resolved.evaluate, certified if stop == "certified" else None,
+                                    resolved, certified if stop == "certified" else None,
                                     certificate_of if certify is not None else None,
                                     side_by_side(resolved)[1]))
     spent_checking = sum(c[2] for c in checks)
@@ -159,7 +158,7 @@ def certify_waypoints(request: PlanRequest, waypoints: np.ndarray,
     checked = CertifyRequest.of_checked(request.scenario, waypoints, request.certify_settings,
                                         request.certify, request.seed)
     return certify_plan(checked, progress=progress, runner=engine.run_swarm, workers=workers,
-                        evaluator=engine.evaluate, searched=searched)
+                        engine=engine, searched=searched)
 
 
 def check_plan(

@@ -16,9 +16,12 @@ from __future__ import annotations
 import logging
 import os
 from dataclasses import dataclass, field
-from typing import Any, Callable
+from typing import TYPE_CHECKING, Any, Callable
 
 from staghunt.errors import FieldError
+
+if TYPE_CHECKING:  # annotations only
+    from staghunt.engine import Engine
 
 F8 = 8
 BASELINE_BYTES = 175 * 2**20
@@ -147,9 +150,9 @@ def _swarm_parts(engine: str, P: int, I: int, K: int, S: int, C: int, N: int, T:
     return parts
 
 
-def _resolve(engine: Any) -> str:
+def _resolve(engine: "str | Engine") -> str:
     if not isinstance(engine, str):
-        return str(getattr(engine, "name", "numba"))
+        return engine.name
     name = engine.lower()
     if name == "auto":
         from staghunt.engine import numba_available
@@ -172,7 +175,7 @@ def _threads(engine: str, threads: int | None) -> int:
     return usable_cores()
 
 
-def estimate_plan(scenario: Any, settings: Any, method: str = "game", engine: Any = "auto",
+def estimate_plan(scenario: Any, settings: Any, method: str = "game", engine: "str | Engine" = "auto",
                   threads: int | None = None, certify: Any = None) -> MemoryEstimate:
     """Peak memory of :func:`staghunt.plan` for ``scenario`` with ``settings`` (and, with
     ``certify`` a :class:`~staghunt.solvers.response.CertifyOptions`, its certificate)."""
@@ -193,7 +196,7 @@ def estimate_plan(scenario: Any, settings: Any, method: str = "game", engine: An
 
 
 def estimate_certify(n_uavs: int, n_obstacles: int, waypoints: int, particles: int, iterations: int,
-                     engine: Any = "auto", threads: int | None = None) -> MemoryEstimate:
+                     engine: "str | Engine" = "auto", threads: int | None = None) -> MemoryEstimate:
     """Peak memory of one certificate (each UAV's deviation search, one after the other)."""
     name = _resolve(engine)
     parts = _swarm_parts(name, int(particles), int(iterations), int(waypoints), 1, 1, n_uavs,

@@ -93,7 +93,7 @@ def check_certify_plan(scenario: Scenario, waypoints: np.ndarray, options: Certi
 def run_certificate(request: CertifyRequest, engine: Engine,
                     progress: Callable[[int, int, int, int], None] | None = None) -> Certificate:
     """The certificate of a checked request, its searches run by ``engine``."""
-    return _certify_plan(request, progress=progress, runner=engine.run_swarm, evaluator=engine.evaluate)
+    return _certify_plan(request, progress=progress, runner=engine.run_swarm, engine=engine)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -170,9 +170,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     except ValueError as exc:  # ClusterError: the scheduler cannot be reached
         return error(one_line(exc))
     if not executor.local:  # compile once here, into the on-disk cache the workers load
-        prepare = getattr(request.runs[(methods[0], seeds[0])].engine, "prepare", None)
-        if callable(prepare):
-            prepare()
+        request.runs[(methods[0], seeds[0])].engine.prepare()
     listener = _CompareProgress(sys.stderr, args.quiet)
     try:
         report = run_compare(request, out, listener=listener, executor=executor)

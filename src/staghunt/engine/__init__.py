@@ -7,38 +7,41 @@
 - ``"auto"``: ``"numba"`` when Numba imports, else ``"numpy"``.
 
 Every method is a :class:`~staghunt.solvers.problem.SwarmProblem` run by an engine's
-``run_swarm``, so every engine runs every method.
+``run_swarm``, so every engine runs every method. The contract (:class:`Engine`) is written
+down in two parts: what the solvers may ask of an engine (:class:`staghunt.costs.CostEngine`:
+``name``, ``prepare``, ``evaluate``, ``team_search``, ``deviations``, below the solvers, which
+receive the engine through it) and, here, ``run_swarm`` and ``threads``. The NumPy reference
+answers each (:class:`NumpyEngine`); nothing is reached by probing an engine for attributes.
 """
 
 from __future__ import annotations
 
-from typing import Callable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
-import numpy as np
-
-from staghunt.costs import CostModel, Costs, evaluate
+from staghunt.costs import CostEngine, NumpyCosts
 from staghunt.solvers.swarm import SwarmRunner, run_swarm
 
 ENGINE_NAMES = ("auto", "numpy", "numba")
 
 
 @runtime_checkable
-class Engine(Protocol):
-    """An engine: ``name``, ``run_swarm`` (contract of :func:`staghunt.solvers.swarm.run_swarm`)
-    and ``evaluate`` (contract of :func:`staghunt.costs.evaluate`)."""
+class Engine(CostEngine, Protocol):
+    """An engine: the solvers' part of the contract (:class:`staghunt.costs.CostEngine`), plus
+    ``run_swarm`` (contract of :func:`staghunt.solvers.swarm.run_swarm`) and ``threads`` (the
+    thread count it runs on: ``None`` = adaptive, else fixed)."""
 
-    name: str
     run_swarm: SwarmRunner
-    evaluate: Callable[[CostModel, np.ndarray], Costs]
+    threads: int | None
 
 
-class NumpyEngine:
-    """The NumPy reference engine (``threads`` does not apply): :func:`staghunt.solvers.swarm.run_swarm`
-    and :func:`staghunt.costs.evaluate` themselves."""
+class NumpyEngine(NumpyCosts):
+    """The NumPy reference engine: :func:`staghunt.solvers.swarm.run_swarm` and
+    :func:`staghunt.costs.evaluate` themselves, on one thread (``threads`` 1), with the
+    reference's answers to the rest of the contract (:class:`staghunt.costs.NumpyCosts`:
+    nothing to prepare, no compiled shortcuts)."""
 
-    name = "numpy"
     run_swarm = staticmethod(run_swarm)
-    evaluate = staticmethod(evaluate)
+    threads: int | None = 1
 
     def __repr__(self) -> str:
         return "NumpyEngine()"
@@ -84,7 +87,7 @@ def side_by_side(engine: Engine) -> tuple[Engine, int]:
     searches): with the compiled engine on several cores, ``workers`` searches at once, one
     thread each (a compiled engine pinned to one thread: no per-iteration barrier, which small
     swarms pay dearly); otherwise ``engine`` itself, one search at a time."""
-    threads = getattr(engine, "threads", 1)
+    threads = engine.threads
     if engine.name == "numba" and (threads is None or threads > 1):
         from staghunt.engine.threads import usable_cores
 

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import replace
-from typing import Any, Callable
+from typing import Callable
 
 import numpy as np
 
@@ -142,7 +142,8 @@ def _decode_one(ma: ModelArrays, sa: SwarmArrays, N: int, K: int, S: int, C: int
 
 
 class NumbaEngine:
-    """The compiled engine. ``threads``: ``None`` = adaptive (1 or all usable cores, whichever
+    """The compiled engine (the whole contract, :class:`staghunt.engine.Engine`, with the compiled
+    shortcuts: ``team_search`` and ``deviations``). ``threads``: ``None`` = adaptive (1 or all usable cores, whichever
     is faster, re-measured every :data:`~staghunt.engine.threads.PROBE_EVERY` iterations);
     an integer pins the count. ``notify`` receives the one-time compile message."""
 
@@ -181,12 +182,15 @@ class NumbaEngine:
         return evaluate(model, waypoints)
 
     def team_search(self, model: CostModel, plan: np.ndarray, costs: np.ndarray, max_evaluations: int, spent: int,
-                    **search: Any) -> tuple[np.ndarray, int] | None:
+                    fractions: tuple[float, ...] = (), step: float = 0.0,
+                    min_step: float = 0.0) -> tuple[np.ndarray, int] | None:
         """The team slide or polish of ``plan`` in one compiled call (see
         :func:`staghunt.engine.deviations.team_search`); ``None`` while the kernel is still being
         compiled beside the first run (:func:`team_search_ready`): the caller's Python loop then
         makes the same decisions."""
-        return team_search(model, plan, costs, max_evaluations, spent, **search) if team_search_ready() else None
+        if not team_search_ready():
+            return None
+        return team_search(model, plan, costs, max_evaluations, spent, fractions, step, min_step)
 
     def deviations(self, model: CostModel, plan: np.ndarray, n: int, costs: Costs | None = None) -> Deviations:
         """UAV ``n``'s deviation costs from the feasible ``plan`` (see

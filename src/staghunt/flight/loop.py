@@ -276,8 +276,7 @@ def fly(source: Any, *, progress: Callable[[float, float], None] | None = None, 
     dyn = scenario.dynamics
     waypoints = request.waypoints
     resolved = request.plan.engine
-    prepare = getattr(resolved, "prepare", None)
-    compile_s = float(prepare()) if callable(prepare) else 0.0
+    compile_s = float(resolved.prepare())
     if side_by_side(resolved)[1] > 1:
         aside.start(PRELOAD)  # the re-plans' second process loads its kernels during the offline plan
     wall0 = time.perf_counter()

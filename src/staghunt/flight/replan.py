@@ -195,7 +195,7 @@ class Replanner:
         done = certify_and_improve(
             chosen.sub, chosen.out.plan, chosen.plan, lambda p: self._timed(chosen.sub, p, *chosen.timing)[0],
             self.search, cfg.certify_options(), cfg.certify_rounds, self.rng, self._certifier.run_swarm,
-            self._certifier.evaluate, self._solo.evaluate, chosen.azimuth, self._workers, deadline)
+            self._certifier, self._solo, chosen.azimuth, self._workers, deadline)
         self.certificate_s = deadline.certificate_s
         cert = done.certificate
         if cert is None:
@@ -210,7 +210,7 @@ class Replanner:
         the verdict and the path evaluations spent."""
         sub, plan, azimuth = game
         done = certify_and_improve(sub, plan, None, lambda p: None, self.search, self.config.certify_options(), 0,
-                                   self.rng, self._certifier.run_swarm, self._certifier.evaluate, self._solo.evaluate,
+                                   self.rng, self._certifier.run_swarm, self._certifier, self._solo,
                                    azimuth, self._workers)
         cert = done.certificate
         assert cert is not None
@@ -360,7 +360,7 @@ class Replanner:
             sub = self._problem(starts, cyl, prm, windows, goals)
             model = CostModel.from_scenario(sub)
             try:
-                out = anytime_rounds(model, warm, settings, rng, engine.run_swarm, engine.evaluate, budget, deadline,
+                out = anytime_rounds(model, warm, settings, rng, engine.run_swarm, engine, budget, deadline,
                                      (lambda: cancel.is_set()) if cancel is not None else None, repair=True,
                                      reply_start=cfg.reply_start, azimuth=azimuth)
             except Cancelled:

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
-from staghunt.costs import Evaluator, evaluate
+from staghunt.costs import NUMPY_COSTS, CostEngine
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.requests import RequestError, check_seed  # noqa: F401  (re-exported)
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm
@@ -35,11 +35,13 @@ class SolverOutput:
 @dataclass(frozen=True, eq=False)
 class MethodRun:
     """What a method is given: the ``scenario``, the ``settings`` (its budget), the run's one
-    seeded ``rng``, an optional ``progress`` callback, and the engine's parts: ``runner`` runs a
+    seeded ``rng``, an optional ``progress`` callback, and the engine: ``runner`` runs a
     :class:`~staghunt.solvers.problem.SwarmProblem` (:func:`~staghunt.solvers.swarm.run_swarm`,
     the NumPy reference, or an engine's ``run_swarm``), so every engine runs every method;
-    ``evaluator`` scores batches of given plans (contract of :func:`staghunt.costs.evaluate`),
-    for methods that also search outside a swarm (``game``'s polish). ``certified``: if given,
+    ``engine`` is the engine itself through the part of its contract the solvers use
+    (:class:`staghunt.costs.CostEngine`: its ``evaluate`` scores batches of given plans, its
+    ``team_search`` and ``deviations`` make ``game``'s local searches in one call where it has
+    them; default: the NumPy reference). ``certified``: if given,
     a method that can stop early (``game``) asks it whether an intermediate plan ``(N, K, 3)`` is
     already a certified equilibrium and stops when it is (``None``: the usual stopping rule).
     ``certify``: if given (the run is certified), the certificate of a plan ``(N, K, 3)``, made
@@ -48,14 +50,14 @@ class MethodRun:
     plan, the local searches already made from it (:class:`~staghunt.solvers.local.LocalSearch`,
     ``searched=``), which the certificate takes instead of making them again. ``workers``:
     independent searches (``game``'s local check) that may run side by side, one thread each
-    (``evaluator`` is then thread-safe)."""
+    (``engine`` is then thread-safe)."""
 
     scenario: Scenario
     settings: SolverSettings
     rng: np.random.Generator
     progress: Progress | None = None
     runner: SwarmRunner = run_swarm
-    evaluator: Evaluator = evaluate
+    engine: CostEngine = NUMPY_COSTS
     certified: Callable[..., bool] | None = None
     certify: Callable[..., Certificate] | None = None
     workers: int = 1

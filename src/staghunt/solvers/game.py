@@ -42,7 +42,7 @@ from typing import Any, Callable
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator, evaluate
+from staghunt.costs import CostEngine, CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.independent import solo_model
@@ -140,7 +140,7 @@ class RoundsOutcome:
 
 
 def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSettings,
-                         rng: np.random.Generator, runner: SwarmRunner, evaluator: Evaluator,
+                         rng: np.random.Generator, runner: SwarmRunner, engine: CostEngine,
                          budget: int, spent: int = 0,
                          on_reply: Callable[[int, np.ndarray], None] | None = None,
                          repair: bool = False, reply_start: float = REPLY_START,
@@ -148,7 +148,8 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
                          certified: Callable[..., bool] | None = None, workers: int = 1) -> RoundsOutcome:
     """Steps 2-4 of the method from the allocation ``plan`` ``(N, K, 3)``: best-response
     rounds until they converge or ``budget`` path evaluations (``spent`` of them already used)
-    are spent. ``on_reply(spent, J)`` follows every reply.
+    are spent: the replies' swarms run by ``runner``, their polish and every plan judged by
+    ``engine``. ``on_reply(spent, J)`` follows every reply.
 
     ``repair``: the starting plan may be infeasible (a re-plan warm-started from a plan that a
     new obstacle cuts): while the plan is infeasible, a reply is accepted when it lowers the
@@ -167,7 +168,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
     counted in the budget."""
     N, P = model.n_uavs, settings.particles
     plan = np.array(plan, dtype=float)
-    current = evaluator(model, plan[None])
+    current = engine.evaluate(model, plan[None])
     J, violation = current.total[0], float(current.total_violation[0])
     replies: list[list[np.ndarray]] = [[plan[n].copy()] for n in range(N)]
     remaining = budget - spent
@@ -192,8 +193,8 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
             spent += out.path_evaluations
             candidate = plan.copy()
             candidate[n] = out.best_waypoints[n]
-            candidate, used = polish(model, candidate, n, local, evaluator)
-            c = evaluator(model, candidate[None])  # the reply judged as a whole plan: 1 more path
+            candidate, used = polish(model, candidate, n, local, engine)
+            c = engine.evaluate(model, candidate[None])  # the reply judged as a whole plan: 1 more path
             spent += used + 1
             new, new_violation = c.total[0], float(c.total_violation[0])
             if violation > 0:
@@ -217,7 +218,7 @@ def best_response_rounds(model: CostModel, plan: np.ndarray, settings: SolverSet
             # Before the certificate: each UAV's local search from the plan, the one the
             # certificate also makes (a quarter of its default budget); a gain beyond epsilon is
             # a better reply, taken, and the rounds go on without a certificate that would fail.
-            done = local_pass(model, plan, J, LOCAL_CHECK_EVALUATIONS, EPSILON, evaluator, budget - spent, workers)
+            done = local_pass(model, plan, J, LOCAL_CHECK_EVALUATIONS, EPSILON, engine, budget - spent, workers)
             plan, J, local_gains, spent = done.plan, done.costs, done.gains, spent + done.evaluations
             accepted += int(np.count_nonzero(local_gains))
             gains = np.maximum(gains, local_gains)  # no growth of the replies after a gain
@@ -298,7 +299,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
     made again. What a search with several starts leaves unspent is left (``unspent_evaluations``): the time
     saved is the point."""
     scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
-    runner, evaluator = run.runner, run.evaluator
+    runner, engine = run.runner, run.engine
     model = CostModel.from_scenario(scenario)
     N, P, I, S = model.n_uavs, settings.particles, settings.iterations, settings.starts
     budget = P * (I + 1) * N
@@ -346,7 +347,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
         else:
             record(spent, evaluate(model, start[None]).total[0])
         if S > 1:
-            start, used = team_refine(model, start, int(TEAM_POLISH_SHARE * budget), cap - spent, evaluator)
+            start, used = team_refine(model, start, int(TEAM_POLISH_SHARE * budget), cap - spent, engine)
             spent += used
             # The start itself may already be an equilibrium (the rigid plan often is): a candidate
             # of its own, whatever equilibrium the rounds then reach from it.
@@ -358,7 +359,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
                     starts.append({"start": kind, "rounds": [], "accepted_replies": 0, "converged": True,
                                    "evaluations": int(spent - before)})
                     break
-        out = best_response_rounds(model, start, settings, rng, runner, evaluator, cap, spent, record,
+        out = best_response_rounds(model, start, settings, rng, runner, engine, cap, spent, record,
                                    repair=kind != "rigid", certified=explore_stop, workers=run.workers)
         spent = out.evaluations
         c = evaluate(model, out.plan[None])
@@ -376,7 +377,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
         # result is still a certified equilibrium, it is one more candidate (it then dominates
         # the other).
         before = spent
-        polished, used = team_refine(model, chosen.plan, int(TEAM_POLISH_SHARE * budget), budget - spent, evaluator)
+        polished, used = team_refine(model, chosen.plan, int(TEAM_POLISH_SHARE * budget), budget - spent, engine)
         spent += used
         if polished is not chosen.plan:
             c = evaluate(model, polished[None])

@@ -18,7 +18,7 @@ from typing import Any, Callable, Generic, TypeVar
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator
+from staghunt.costs import CostEngine, CostModel, Costs, NumpyCosts
 from staghunt.scenario.model import Scenario, SolverSettings
 from staghunt.solvers.game import RoundsOutcome, best_response_rounds
 from staghunt.solvers.local import LocalSearch, local_pass
@@ -63,8 +63,26 @@ class _TimeUp(Exception):
         self.plan, self.spent = plan, spent
 
 
+class _Watched(NumpyCosts):
+    """``engine``'s evaluations, each of a single plan noted by ``seen(plan, costs)``: an engine
+    whose other answers are the reference's (:class:`~staghunt.costs.NumpyCosts`: no compiled
+    shortcut, so every candidate of a reply's polish is scored through :meth:`evaluate`)."""
+
+    def __init__(self, engine: CostEngine, seen: Callable[[np.ndarray, Costs], None]) -> None:
+        self.engine, self.seen, self.name = engine, seen, engine.name
+
+    def prepare(self) -> float:
+        return self.engine.prepare()
+
+    def evaluate(self, model: CostModel, waypoints: np.ndarray) -> Costs:
+        out = self.engine.evaluate(model, waypoints)
+        if waypoints.shape[0] == 1:
+            self.seen(waypoints[0], out)
+        return out
+
+
 def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings, rng: np.random.Generator,
-                   runner: SwarmRunner, evaluator: Evaluator, budget: int, deadline: Deadline,
+                   runner: SwarmRunner, engine: CostEngine, budget: int, deadline: Deadline,
                    cancelled: Callable[[], bool] | None = None, **options: Any) -> RoundsOutcome:
     """:func:`~staghunt.solvers.game.best_response_rounds` from ``warm`` ``(N, K, 3)`` that,
     once ``deadline`` has passed, stops after the reply in progress and returns the plan it
@@ -73,11 +91,8 @@ def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings,
     ``reply_start``, ``azimuth``)."""
     box: dict[str, Any] = {"plan": np.array(warm, dtype=float), "J": None, "last": None}
 
-    def evaluate(m: CostModel, plans: np.ndarray) -> Any:
-        out = evaluator(m, plans)
-        if plans.shape[0] == 1:  # the rounds judge each reply as a whole plan last, before on_reply
-            box["last"] = (plans[0].copy(), out.total[0].copy())
-        return out
+    def seen(plan: np.ndarray, out: Costs) -> None:  # the rounds judge each reply as a whole plan last, before on_reply
+        box["last"] = (plan.copy(), out.total[0].copy())
 
     def on_reply(spent: int, J: np.ndarray) -> None:
         last = box["last"]
@@ -89,11 +104,12 @@ def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings,
         if deadline.passed:
             raise _TimeUp(box["plan"], spent)
 
-    box["J"] = evaluator(model, box["plan"][None]).total[0].copy()
+    box["J"] = engine.evaluate(model, box["plan"][None]).total[0].copy()
     try:
-        return best_response_rounds(model, warm, settings, rng, runner, evaluate, budget, 0, on_reply, **options)
+        return best_response_rounds(model, warm, settings, rng, runner, _Watched(engine, seen), budget, 0, on_reply,
+                                    **options)
     except _TimeUp as up:
-        J = evaluator(model, up.plan[None]).total[0]
+        J = engine.evaluate(model, up.plan[None]).total[0]
         return RoundsOutcome(up.plan, J, up.spent + 1, [], 0, False)
 
 
@@ -113,7 +129,7 @@ class Improved(Generic[Flown]):
 
 def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: Callable[[np.ndarray], Flown | None],
                         search: SolverSettings, options: CertifyOptions, rounds: int, rng: np.random.Generator,
-                        runner: SwarmRunner, evaluator: Evaluator, judge: Evaluator, azimuth: float,
+                        runner: SwarmRunner, engine: CostEngine, judge: CostEngine, azimuth: float,
                         workers: int = 1, deadline: Deadline | None = None) -> Improved[Flown]:
     """Certify ``plan`` of the game ``sub`` (flown as ``flown``, solved with headings within
     ``azimuth``) and improve it while the certificate finds better replies.
@@ -130,9 +146,10 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     certified one with the least largest relative gap: never worse than the first.
 
     ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
-    searches with ``runner``/``evaluator`` (``workers`` side by side); ``judge`` evaluates
-    single plans. ``deadline``: a certificate starts only if its running estimate fits before
-    the deadline (the estimate is updated with every certificate made)."""
+    searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
+    single plans and makes the local searches before a certificate. ``deadline``: a certificate
+    starts only if its running estimate fits before the deadline (the estimate is updated with
+    every certificate made)."""
     deadline = deadline or Deadline()
     model = CostModel.from_scenario(sub)
     local = int(LOCAL_SHARE * search.particles * (search.iterations + 1))
@@ -142,7 +159,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
 
     def settle(plan: np.ndarray, flown: Flown) -> tuple[np.ndarray, Flown, bool, tuple[LocalSearch, ...]]:
         """The certificate's own local searches before it, kept if ``accept`` flies the plan."""
-        team, J = plan.copy(), judge(model, plan[None]).total[0]
+        team, J = plan.copy(), judge.evaluate(model, plan[None]).total[0]
         last: tuple[LocalSearch, ...] = ()
         for _ in range(LOCAL_PASSES):
             if deadline.passed:
@@ -169,7 +186,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
         t0 = time.perf_counter()
         request = CertifyRequest.of_checked(sub, plan, search, options, int(rng.integers(2**31)))
         cert = certify_plan(request, runner=runner, azimuth=azimuth, workers=workers, carried=carried,
-                            evaluator=evaluator, searched=searched)
+                            engine=engine, searched=searched)
         took = time.perf_counter() - t0
         deadline.certificate_s = took if out.certificates == 0 and deadline.certificate_s == 0 else \
             max(took, 0.5 * (deadline.certificate_s + took))
@@ -183,12 +200,12 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                  if cert.uavs[n].relative > eps and cert.uavs[n].deviation is not None]
         adopted = None
         if len(order) > 1:  # every reply in turn, kept if it still gains more than epsilon
-            team, J = plan.copy(), judge(model, plan[None]).total[0]
+            team, J = plan.copy(), judge.evaluate(model, plan[None]).total[0]
             taken = 0
             for n in order:
                 candidate = team.copy()
                 candidate[n] = cert.uavs[n].deviation
-                c = judge(model, candidate[None])
+                c = judge.evaluate(model, candidate[None])
                 out.spent += 1
                 if c.total_violation[0] == 0 and c.total[0][n] < (1 - eps) * J[n]:
                     team, J, taken = candidate, c.total[0], taken + 1
@@ -201,7 +218,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                 candidate = plan.copy()
                 candidate[n] = cert.uavs[n].deviation
                 out.spent += 1
-                if judge(model, candidate[None]).total_violation[0] > 0:
+                if judge.evaluate(model, candidate[None]).total_violation[0] > 0:
                     continue
                 again = accept(candidate)
                 if again is not None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator, evaluate, to_absolute
+from staghunt.costs import NUMPY_COSTS, CostEngine, CostModel, to_absolute
 from staghunt.solvers.swarm import shared_pool
 
 ACCEPT_TOL = 1e-9
@@ -25,7 +25,7 @@ POLISH_MIN_STEP = 1e-3
 
 
 def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
-           evaluator: Evaluator = evaluate, step: float = POLISH_STEP,
+           engine: CostEngine = NUMPY_COSTS, step: float = POLISH_STEP,
            min_step: float = POLISH_MIN_STEP, compiled: bool = True) -> tuple[np.ndarray, int]:
     """Local pattern search on UAV ``n``'s free waypoints in the site frame, the others fixed.
 
@@ -35,25 +35,25 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
     path combining every improving move; the best feasible one that lowers ``J_n`` is taken,
     else ``step`` halves, down to ``min_step`` metres. Returns the ``(N, K, 3)`` plan (``plan``
     itself if nothing improved) and the path evaluations spent (``<= max_evaluations``).
-    ``evaluator`` scores the candidates (an engine's ``evaluate``); the plan's own cost is
-    taken with the same evaluator, so every comparison is made in one arithmetic. On the
-    compiled engine (``compiled``) the whole search is one compiled call making the same
-    decisions on the same costs (:meth:`~staghunt.engine.deviations.Deviations.polish`); this
-    loop is its reference.
+    ``engine`` scores the candidates (its ``evaluate``); the plan's own cost is taken by the
+    same engine, so every comparison is made in one arithmetic. Where the engine has a
+    deviation evaluator (:meth:`~staghunt.costs.CostEngine.deviations`; the compiled engine's:
+    :class:`~staghunt.engine.deviations.Deviations`), the candidates are scored by it and, with
+    ``compiled``, the whole search is one call making the same decisions on the same costs
+    (its ``polish``); this loop is its reference.
     """
     K = plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, K, 3)
     if max_evaluations < 6 * K + 1:
         return plan, 0
-    current = evaluator(model, plan[None])
+    current = engine.evaluate(model, plan[None])
     if current.total_violation[0] != 0:
         return plan, 0
     best, J = plan, float(current.total[0, n])
     spent = 0
     # Only UAV n's path changes and the others' stay clear of each other (the plan is feasible):
     # an engine may evaluate the deviation alone (same J_n, same feasibility verdicts).
-    engine = getattr(evaluator, "__self__", None)
-    fast = engine.deviations(model, plan, n, current) if hasattr(engine, "deviations") else None
+    fast = engine.deviations(model, plan, n, current)
     if fast is not None and compiled:  # the same search in one compiled call
         path, _, spent = fast.polish(J, max_evaluations, step, min_step)
         if np.array_equal(path, plan[n]):
@@ -63,7 +63,7 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
         return best, spent
 
     def own(paths: np.ndarray) -> np.ndarray:
-        return fast(paths) if fast is not None else _own_costs(model, best, n, paths, evaluator)
+        return fast(paths) if fast is not None else _own_costs(model, best, n, paths, engine)
 
     while step >= min_step and spent + 6 * K + 1 <= max_evaluations:
         cands = np.clip(best[n][None] + step * moves, model.lower, model.upper)
@@ -86,25 +86,20 @@ def polish(model: CostModel, plan: np.ndarray, n: int, max_evaluations: int,
 
 
 def _own_costs(model: CostModel, plan: np.ndarray, n: int, paths: np.ndarray,
-               evaluator: Evaluator) -> np.ndarray:
+               engine: CostEngine) -> np.ndarray:
     """``(Q,)`` ``J_n`` of ``plan`` with UAV ``n``'s path replaced by each of ``paths``
     ``(Q, K, 3)``; ``inf`` where the deviation breaks a hard constraint."""
     team = np.repeat(plan[None], len(paths), axis=0)
     team[:, n] = paths
-    c = evaluator(model, team)
+    c = engine.evaluate(model, team)
     return np.where(c.total_violation == 0, c.total[:, n], np.inf)
-
-
-def arithmetic(evaluator: Evaluator) -> str:
-    """The name of the engine whose arithmetic ``evaluator`` uses (``"numpy"`` for the reference
-    :func:`staghunt.costs.evaluate`): two searches in the same arithmetic make the same decisions."""
-    return str(getattr(getattr(evaluator, "__self__", None), "name", "numpy"))
 
 
 @dataclass(frozen=True, eq=False)
 class LocalSearch:
     """UAV ``n``'s local search (:func:`polish`) from ``plan`` ``(N, K, 3)`` with at most
-    ``budget`` path evaluations in ``arithmetic`` (:func:`arithmetic`): the ``(K, 3)`` ``path`` it
+    ``budget`` path evaluations in ``arithmetic`` (the name of the engine that made it: two
+    searches in the same arithmetic make the same decisions): the ``(K, 3)`` ``path`` it
     ends on (``plan[n]`` if nothing improved) and the ``evaluations`` it spent. The certificate
     (:func:`staghunt.solvers.response.certify_plan`) takes it instead of making the same search
     again (:meth:`stands_for`): the same computation, so the same result."""
@@ -116,9 +111,9 @@ class LocalSearch:
     path: np.ndarray
     evaluations: int
 
-    def stands_for(self, plan: np.ndarray, n: int, budget: int, evaluator: Evaluator) -> bool:
-        """Whether this is :func:`polish` ``(plan, n, budget, evaluator)``'s search."""
-        return (self.n == n and self.budget == budget and self.arithmetic == arithmetic(evaluator)
+    def stands_for(self, plan: np.ndarray, n: int, budget: int, engine: CostEngine) -> bool:
+        """Whether this is :func:`polish` ``(plan, n, budget, engine)``'s search."""
+        return (self.n == n and self.budget == budget and self.arithmetic == engine.name
                 and self.plan.shape == plan.shape and bool(np.array_equal(self.plan, plan)))
 
     def moved(self, plan: np.ndarray) -> np.ndarray:
@@ -146,14 +141,14 @@ class LocalPass:
 
 
 def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, epsilon: float,
-               evaluator: Evaluator = evaluate, limit: float = np.inf, workers: int = 1) -> LocalPass:
+               engine: CostEngine = NUMPY_COSTS, limit: float = np.inf, workers: int = 1) -> LocalPass:
     """Every UAV in turn makes a local search (:func:`polish`, ``per_uav`` evaluations) from the
     feasible ``plan`` ``(N, K, 3)`` with costs ``J`` ``(N,)``; a path that lowers its ``J_n`` by
     more than ``epsilon`` (relative) and keeps the plan feasible is taken. No search starts that
     could take the evaluations past ``limit``.
 
     ``workers > 1``: the next ``workers`` searches are made side by side from the current plan
-    (``evaluator`` must then be thread-safe, e.g. an engine's ``evaluate``), and each stands until
+    (``engine`` must then be thread-safe, as the engines are), and each stands until
     a gain changes the plan; the ones made before a gain are dropped and made again from the
     new plan (at most ``workers - 1`` searches wasted per gain, on the other cores). The same
     decisions as one at a time, so the same result. Measured on two cores: a pass of 3 UAVs
@@ -162,7 +157,6 @@ def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, 
     gains = np.zeros(N)
     spent = 0
     searches: list[LocalSearch] = []
-    kind = arithmetic(evaluator)
     pool = shared_pool(workers, "local") if workers > 1 and N > 1 else None
     ahead: dict[int, Future[tuple[np.ndarray, int]]] = {}
     dropped: list[Future[tuple[np.ndarray, int]]] = []
@@ -172,15 +166,15 @@ def local_pass(model: CostModel, plan: np.ndarray, J: np.ndarray, per_uav: int, 
         if pool is not None:
             for m in range(n, min(N, n + workers)):
                 if m not in ahead:
-                    ahead[m] = pool.submit(polish, model, plan, m, per_uav, evaluator)
+                    ahead[m] = pool.submit(polish, model, plan, m, per_uav, engine)
             moved, used = ahead.pop(n).result()
         else:
-            moved, used = polish(model, plan, n, per_uav, evaluator)
-        searches.append(LocalSearch(np.array(plan), n, per_uav, kind, np.array(moved[n]), used))
+            moved, used = polish(model, plan, n, per_uav, engine)
+        searches.append(LocalSearch(np.array(plan), n, per_uav, engine.name, np.array(moved[n]), used))
         spent += used
         if moved is plan:
             continue
-        c = evaluator(model, moved[None])
+        c = engine.evaluate(model, moved[None])
         spent += 1
         if c.total_violation[0] == 0 and c.total[0, n] < J[n] * (1.0 - epsilon):
             gains[n] = (J[n] - c.total[0, n]) / J[n]

@@ -58,7 +58,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator, evaluate
+from staghunt.costs import NUMPY_COSTS, CostEngine, CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, decode, encode
 from staghunt.inputs import check_waypoints
 from staghunt.scenario.model import Scenario, SolverSettings, check_settings
@@ -266,7 +266,7 @@ def certify_plan(
     azimuth: float = ANGLE_RANGE,
     workers: int = 1,
     carried: Mapping[int, UAVGap] | None = None,
-    evaluator: Evaluator = evaluate,
+    engine: CostEngine = NUMPY_COSTS,
     searched: Sequence[LocalSearch] = (),
 ) -> Certificate:
     """Nash gaps of the team plan of ``request`` (:func:`check_certify`, run as checked): each
@@ -274,8 +274,8 @@ def certify_plan(
     ``c1``, ``c2``, ``velocity_fraction`` of its settings), the verdict with its ``epsilon``.
 
     ``progress(uav, n_uavs, iteration, iterations)`` is called during the searches.
-    ``runner``: what runs the searches (an engine's ``run_swarm``) and ``evaluator`` the local
-    searches (an engine's ``evaluate``); the plan's costs, and the local searches' results, are
+    ``runner``: what runs the searches (an engine's ``run_swarm``) and ``engine`` the local
+    searches (the same engine: :class:`staghunt.costs.CostEngine`); the plan's costs, and the local searches' results, are
     always evaluated with the NumPy reference. ``azimuth``: half-width of the deviations' heading
     range (the strategy space the plan was solved in). ``workers``: searches run at once
     (threads; each UAV's swarm and its local searches are separate tasks, :func:`_side_by_side`;
@@ -336,11 +336,11 @@ def certify_plan(
         move, or not to a feasible plan), its path, its evaluations and those taken."""
         team = wp.copy()
         team[n] = origin
-        made = next((m for m in searched if m.stands_for(team, n, budgets[n], evaluator)), None)
+        made = next((m for m in searched if m.stands_for(team, n, budgets[n], engine)), None)
         if made is not None:  # made just before, from this plan: the same search
             moved, used, taken = made.moved(team), made.evaluations, made.evaluations
         else:
-            moved, used, taken = *polish(model, team, n, budgets[n], evaluator), 0
+            moved, used, taken = *polish(model, team, n, budgets[n], engine), 0
         if moved is team:
             return None, origin, used, taken
         c = evaluate(model, moved[None])

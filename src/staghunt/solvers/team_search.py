@@ -9,14 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from staghunt.costs import CostModel, Evaluator, evaluate
+from staghunt.costs import NUMPY_COSTS, CostEngine, CostModel
 from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP
 
 SLIDE_FRACTIONS = (0.4, 0.2, 0.1, 0.05, 0.025, 0.0125)
 """The shares of the way to a neighbouring waypoint that :func:`team_slide` tries, in turn."""
 
 
-def _team_search_start(model: CostModel, plan: np.ndarray, evaluator: Evaluator, max_evaluations: int,
+def _team_search_start(model: CostModel, plan: np.ndarray, engine: CostEngine, max_evaluations: int,
                        sweep: int) -> tuple[np.ndarray | None, int]:
     """Where a team search (:func:`team_polish`, :func:`team_slide`) starts: ``(J, N)``, the
     ``(N,)`` costs of the feasible ``plan`` and the evaluations spent on them; ``(None, spent)``
@@ -25,7 +25,7 @@ def _team_search_start(model: CostModel, plan: np.ndarray, evaluator: Evaluator,
     N = plan.shape[0]
     if max_evaluations < N * (sweep + 1):
         return None, 0
-    current = evaluator(model, plan[None])
+    current = engine.evaluate(model, plan[None])
     if current.total_violation[0] != 0:
         return None, N
     return current.total[0], N
@@ -39,7 +39,7 @@ def _dominating(c: Any, J: np.ndarray) -> np.ndarray:
             & np.any(c.total < J * (1.0 - ACCEPT_TOL), axis=1))
 
 
-def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
+def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, engine: CostEngine = NUMPY_COSTS,
                 step: float = POLISH_STEP, min_step: float = POLISH_MIN_STEP,
                 compiled: bool = True) -> tuple[np.ndarray, int]:
     """Pareto-improving pattern search that moves the whole team: each sweep evaluates the
@@ -50,21 +50,23 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
     spherical encoding leaves a formation route metres from its local optimum; this finishes
     the descent without making any UAV worse off. Returns the ``(N, K, 3)`` plan (``plan``
     itself if nothing improved) and the path evaluations spent (``N`` per candidate,
-    ``<= max_evaluations``). On the compiled engine (``compiled``) the whole search is one
-    compiled call making the same decisions on the same costs
-    (:func:`~staghunt.engine.deviations.team_search`); this loop is its reference."""
+    ``<= max_evaluations``). ``engine`` scores the candidates; where it has a team search
+    (:meth:`~staghunt.costs.CostEngine.team_search`; the compiled engine's:
+    :func:`~staghunt.engine.deviations.team_search`) and ``compiled``, the whole search is one
+    call making the same decisions on the same costs; this loop is its reference."""
     N, K = plan.shape[0], plan.shape[1]
     moves = np.concatenate([np.eye(3 * K), -np.eye(3 * K)]).reshape(6 * K, 1, K, 3)
-    J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 6 * K)
+    J, spent = _team_search_start(model, plan, engine, max_evaluations, 6 * K)
     if J is None:
         return plan, spent
-    found = _compiled(model, plan, evaluator, J, max_evaluations, spent, step=step, min_step=min_step) if compiled else None
+    found = _compiled(engine.team_search(model, plan, J, max_evaluations, spent, step=step, min_step=min_step),
+                      plan) if compiled else None
     if found is not None:
         return found
     best = plan
     while step >= min_step and spent + N * 6 * K <= max_evaluations:
         cands = np.clip(best[None] + step * moves, model.lower, model.upper)  # (6K, N, K, 3)
-        c = evaluator(model, cands)
+        c = engine.evaluate(model, cands)
         spent += N * 6 * K
         better = _dominating(c, J)
         if not better.any():
@@ -75,14 +77,9 @@ def team_polish(model: CostModel, plan: np.ndarray, max_evaluations: int, evalua
     return best, spent
 
 
-def _compiled(model: CostModel, plan: np.ndarray, evaluator: Evaluator, *search: Any,
-              **options: Any) -> tuple[np.ndarray, int] | None:
-    """The plan (``plan`` itself if nothing improved, as the Python loops return it) and
-    evaluations of the compiled team search of ``plan`` if ``evaluator`` is a compiled engine's
-    and its kernel is ready (:meth:`~staghunt.engine.numba_engine.NumbaEngine.team_search`),
-    else ``None``."""
-    engine = getattr(evaluator, "__self__", None)
-    found = engine.team_search(model, plan, *search, **options) if hasattr(engine, "team_search") else None
+def _compiled(found: tuple[np.ndarray, int] | None, plan: np.ndarray) -> tuple[np.ndarray, int] | None:
+    """What an engine's team search of ``plan`` found (:meth:`~staghunt.costs.CostEngine.team_search`),
+    as the Python loops return it (``plan`` itself if nothing improved); ``None`` if it has none."""
     if found is None:
         return None
     return (plan if np.array_equal(found[0], plan) else found[0]), found[1]
@@ -97,7 +94,7 @@ def _in_order(total: np.ndarray, op: np.ufunc) -> np.ndarray:
     return out
 
 
-def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluator: Evaluator = evaluate,
+def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, engine: CostEngine = NUMPY_COSTS,
                fractions: tuple[float, ...] = SLIDE_FRACTIONS, compiled: bool = True) -> tuple[np.ndarray, int]:
     """Pareto-improving search over *when* the team passes where: each sweep evaluates the
     ``2 K`` plans with waypoint ``k`` of *every* UAV moved the same ``fraction`` of the way
@@ -111,14 +108,16 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
     seeds of scenario 2 differed mostly in this (the same route, its waypoints spaced
     differently), which neither a one-coordinate move (:func:`team_polish`) nor a UAV alone
     can change. Returns the ``(N, K, 3)`` plan (``plan`` itself if nothing improved) and the
-    path evaluations spent (``N`` per candidate, ``<= max_evaluations``). On the compiled engine
-    (``compiled``) the whole search is one compiled call making the same decisions
-    (:func:`~staghunt.engine.deviations.team_search`); this loop is its reference."""
+    path evaluations spent (``N`` per candidate, ``<= max_evaluations``). ``engine`` scores the
+    candidates; where it has a team search (:meth:`~staghunt.costs.CostEngine.team_search`) and
+    ``compiled``, the whole search is one call making the same decisions; this loop is its
+    reference."""
     N, K = plan.shape[0], plan.shape[1]
-    J, spent = _team_search_start(model, plan, evaluator, max_evaluations, 2 * K)
+    J, spent = _team_search_start(model, plan, engine, max_evaluations, 2 * K)
     if J is None:
         return plan, spent
-    found = _compiled(model, plan, evaluator, J, max_evaluations, spent, fractions=tuple(fractions)) if compiled else None
+    found = _compiled(engine.team_search(model, plan, J, max_evaluations, spent, fractions=tuple(fractions)),
+                      plan) if compiled else None
     if found is not None:
         return found
     best = plan
@@ -131,7 +130,7 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
             cands[rows, :, rows] += fraction * (full[:, :K] - best).transpose(1, 0, 2)
             cands[K + rows, :, rows] += fraction * (full[:, 2:] - best).transpose(1, 0, 2)
             cands = np.clip(cands, model.lower, model.upper)
-            c = evaluator(model, cands)
+            c = engine.evaluate(model, cands)
             spent += N * 2 * K
             better = _dominating(c, J)
             if not better.any():
@@ -142,10 +141,10 @@ def team_slide(model: CostModel, plan: np.ndarray, max_evaluations: int, evaluat
 
 
 def team_refine(model: CostModel, plan: np.ndarray, each: int, left: int,
-                evaluator: Evaluator = evaluate) -> tuple[np.ndarray, int]:
+                engine: CostEngine = NUMPY_COSTS) -> tuple[np.ndarray, int]:
     """:func:`team_slide`, then :func:`team_polish`, each with at most ``each`` path evaluations
     and both together at most ``left``. Returns the ``(N, K, 3)`` plan (``plan`` itself if
     nothing improved) and the evaluations spent."""
-    slid, spent = team_slide(model, plan, min(each, left), evaluator)
-    polished, used = team_polish(model, slid, min(each, left - spent), evaluator)
+    slid, spent = team_slide(model, plan, min(each, left), engine)
+    polished, used = team_polish(model, slid, min(each, left - spent), engine)
     return polished, spent + used
