@@ -1,18 +1,27 @@
-"""The flight room's parts on their own, without simulating vehicles: the radio link, and what a
-UAV decides on board (which plan it takes, when it holds, its reflex)."""
+"""The flight room's parts on their own, without simulating vehicles: the radio link, what a
+UAV decides on board (which plan it takes, when it holds, its reflex), and when the ground
+station sends a re-plan."""
 
 from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink
+from staghunt import load_scenario
+from staghunt.engine import get_engine
+from staghunt.flight import FlyConfig
+from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink, Telemetry
 from staghunt.flight.onboard import START_TOLERANCE, Onboard, hold_piece
+from staghunt.flight.replan import Replanner
+from staghunt.flight.station import PLAN_COPIES, GroundStation
 from staghunt.task import VehicleLimits
 from staghunt.trajectory.quintic import Reference, timed_path
 from staghunt.trajectory.team import Track
 from staghunt.world import Cylinder
-from staghunt.world.dynamic import Link
+from staghunt.world.dynamic import Dynamics, Link
 
 LIMITS = VehicleLimits()
 
@@ -174,3 +183,35 @@ def test_the_reflex_keeps_off_a_holding_team_mate():
     other.receive(2.0, Beacon(1, 2.0, ahead + [0.0, 1.0, 0.0], False), ref.state(np.array([2.0]))[0][0, 0], [])
     other.reflex(2.0)
     assert other.brake_at is None  # a team-mate flying its plan reserves nothing
+
+
+def test_a_plan_due_at_a_tick_that_starts_another_replan_is_still_sent():
+    """Two pop-ups reported 0.3 s apart, each re-planned with a fixed latency of 0.3 s: the first
+    plan is due at the very tick whose telemetry triggers the second re-plan. It leaves the
+    station at that tick (the second job once replaced it, and its plan was never sent: the team
+    flew on towards what it avoided)."""
+    sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    dyn = Dynamics()
+    config = FlyConfig(latency=0.3, replan_rate=0)
+    planner = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
+    station = GroundStation(planner, dyn, config, ref, 0.01, Link().worst_delay)
+    pops = [Cylinder(30.0, 15.0, 2.0, "popA"), Cylinder(42.0, 23.0, 2.0, "popB")]
+
+    def telemetry(t: float, n: int, seen: tuple[Cylinder, ...]) -> Telemetry:
+        p, v = ref.state(np.array([t]))[:2, n, 0]
+        return Telemetry(n, t, p, v, 0, None, tuple((s.name, s) for s in seen))
+
+    assert [m for _, m in station.tick(2.0, [telemetry(1.95, 0, pops[:1])]) if isinstance(m, PlanMessage)] == []
+    first = station.records[-1]
+    assert first.version == 1 and first.effect_time == pytest.approx(2.3) and first.status.solved
+    out = station.tick(2.3, [telemetry(2.25, 1, pops[1:])])  # the second pop-up: a re-plan now
+    assert station.records[-1].time == pytest.approx(2.3) and len(station.records) == 2
+    sent = [(n, m.version) for n, m in out if isinstance(m, PlanMessage)]
+    assert sorted(sent) == sorted([(0, 1), (1, 1)] * PLAN_COPIES)  # plan 1 leaves now, twice to each UAV
+    assert station.released[0] == 1 and 1 in station.plans
+    assert [m.version for _, m in out if isinstance(m, Heartbeat)] == [1, 1]  # the heartbeat names it
+    assert station.release(2.3) == []  # the second job is not due yet
+    later = [m.version for _, m in station.release(2.6) if isinstance(m, PlanMessage)]
+    assert later == [2] * (2 * PLAN_COPIES) and station.released[0] == 2

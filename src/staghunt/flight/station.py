@@ -159,9 +159,13 @@ class GroundStation:
 
     def tick(self, t: float, inbox: list[Any]) -> list[tuple[int, Any]]:
         """One planner tick at ``t`` with the messages that reached the station; returns the
-        messages it sends now (heartbeats, plans sent again)."""
+        messages it sends now (a plan whose latency has just passed, heartbeats, plans sent
+        again)."""
         self._observe(t, inbox)
-        job = self.job if self.job is not None and t < self.job.release - 1e-9 else None
+        # a job whose latency has passed leaves first: a re-plan or a certificate started at this
+        # tick would replace it, and its plan would never be sent
+        released = self.release(t)
+        job = self.job
         trigger = None
         if job is None or job.cause is Cause.RECEDING:  # an event pre-empts a receding-horizon job
             trigger = self._trigger(t, job is not None)
@@ -174,9 +178,9 @@ class GroundStation:
             self._replan(t, trigger)
         elif job is None and self.to_certify is not None:
             self._certify(t)
-        out: list[tuple[int, Any]] = [(n, Heartbeat(*self.released)) for n in range(self.n)]
+        out = released + [(n, Heartbeat(*self.released)) for n in range(self.n)]
         p = self.plans.get(self.released[0])
-        if p is not None and (t + self.worst < p.splice or p.stop_first):
+        if p is not None and not released and (t + self.worst < p.splice or p.stop_first):
             acks = self.acks.get(p.version, {})
             out += [(n, p) for n in p.uavs if n not in acks and t < p.plan.arrival]
         return out
