@@ -187,6 +187,10 @@ class Replanner:
             if moved is not None:
                 return Solved(moved, ReplanStatus.SIDESTEP, spent, tries, problems=problems, windows=used)
             soon = t_soon()
+            if self.acceptance.check(base, soon, max(t_s, soon) + cfg.conflict_horizon).safe:
+                # what the team flies (a sidestep under way, say) stays clear: a stop would only
+                # cut it short, perhaps where a known motion will pass
+                return Solved(None, ReplanStatus.KEPT, spent, tries, problems=problems, windows=used)
             plan, status = self.fallback.stop(base, soon, max(t_s, soon))
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full

@@ -71,6 +71,9 @@ class GroundStation:
         self.replanner, self.dyn, self.config, self.dt = replanner, dyn, config, dt
         self.scenario = replanner.scenario
         self.n = self.scenario.n_uavs
+        goals = self.scenario.goals()
+        goals[:, 2] = self.scenario.world.terrain.absolute(goals[:, 0], goals[:, 1], goals[:, 2])
+        self.goals = goals
         self.worst = worst_delay
         self.tracks = [Track(((ref0.pieces[0].t0, ref0, n),)) for n in range(self.n)]
         self.history: list[dict[int, Track]] = [{0: track} for track in self.tracks]
@@ -319,8 +322,11 @@ class GroundStation:
     def _after(self, t: float, trigger: Trigger, status: ReplanStatus) -> None:
         """The stop-and-retry bookkeeping of a re-plan's outcome."""
         cfg = self.config
+        # a re-plan that kept the current plan fails too when that plan ends short of the goals
+        # (a stop or a sidestep, flown on since no stop replaced it): the team retries from there
         failed = status in (ReplanStatus.STOP, ReplanStatus.EMERGENCY_STOP) or (
-            status is ReplanStatus.KEPT and trigger.cause is Cause.RETRY)
+            status is ReplanStatus.KEPT and (trigger.cause is Cause.RETRY
+                                             or (trigger.cause is not Cause.RECEDING and self._short())))
         if status is ReplanStatus.STOP_REPLANNED:
             self.stops += 1
         if status is ReplanStatus.SIDESTEP or (status is ReplanStatus.KEPT and not failed):
@@ -336,6 +342,12 @@ class GroundStation:
                                 f"passes ({'; '.join(last.problems[:2]) or 'no feasible plan'})")
         else:
             self.stopped_at, self.retries = -1.0, 0
+
+    def _short(self) -> bool:
+        """Whether what the station believes the team flies ends more than 1 m from a goal."""
+        team = self.team
+        end = team.state(np.array([end_time(team)]))[0][:, 0]
+        return bool(np.any(np.linalg.norm(end - self.goals, axis=-1) > 1.0))
 
     def waiting(self, t: float) -> float:
         """Until when the flight must go on for the station: a job in progress, the retries of a
