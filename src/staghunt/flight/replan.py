@@ -20,8 +20,9 @@ in, carried to ``t_s`` (:meth:`Start.measured`). It
 
 From a moving state the same is solved from rest after a synchronised stop, side by side on
 two cores (:mod:`~staghunt.flight.aside`) or after the moving solve fails on one, and flown if
-the moving one fails. If neither passes, the fallback (:mod:`~staghunt.flight.fallback`): a
-stop to hover, or, hovering, a sidestep out of a known motion's way.
+the moving one fails. If neither passes, the fallback (:mod:`~staghunt.flight.fallback`):
+hovering, a sidestep out of a known motion's way; else what the team flies if it stays clear
+over the conflict horizon (a stop would cut a sidestep short), or a stop to hover.
 """
 
 from __future__ import annotations
@@ -132,7 +133,8 @@ class Replanner:
         ``scale``: budget factor (after a stop); ``windows``: predicted conflicts to solve
         around; ``deadline``: wall-clock budget (``None``: none); ``horizon``: re-solve only
         that many seconds of the route ahead and keep the rest (0: to the goals);
-        ``fallback``: stop (or sidestep) if no plan passes, else keep the current plan
+        ``fallback``: if no plan passes, sidestep, keep the current plan when it stays clear
+        over the conflict horizon, or stop; else (``False``) keep the current plan
         (:attr:`ReplanStatus.KEPT`)."""
         cfg, sc = self.config, self.scenario
         deadline = deadline or Deadline()
