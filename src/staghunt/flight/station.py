@@ -101,12 +101,20 @@ class GroundStation:
     @property
     def team(self) -> RowTeam:
         """What the station believes every UAV flies, the newest plan sent included from its
-        start for every UAV that has not refused it (it will switch to it before anything the
-        station sends now can start)."""
+        start for every UAV that has not refused it and can take it (it will switch to it before
+        anything the station sends now can start): not for a UAV whose hold the plan did not
+        know of (it refuses such a plan; built on it, every later plan would start where that
+        UAV is not)."""
         p = self.plans.get(self.released[0])
         acks = self.acks.get(self.released[0], {}) if p is not None else {}
-        tracks = tuple(tr.then(p.splice, p.plan, n) if p is not None and self.taken[n] < p.version
-                       and acks.get(n) is not False else tr for n, tr in enumerate(self.tracks))
+
+        def takes(n: int) -> bool:
+            knew = p.holds[n] if len(p.holds) > n else None
+            return (self.taken[n] < p.version and acks.get(n) is not False
+                    and (self.held[n] is None or knew == self.held[n]))
+
+        tracks = tuple(tr.then(p.splice, p.plan, n) if p is not None and takes(n) else tr
+                       for n, tr in enumerate(self.tracks))
         return RowTeam(tracks, (0,) * self.n)
 
     def _took(self, n: int, version: int) -> None:
