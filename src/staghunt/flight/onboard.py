@@ -5,7 +5,9 @@ that reaches it in time, whose start agrees with where the UAV will be, becomes 
 acknowledged; the UAV switches to it at its start. It refuses (and says why) a plan that opens
 with a path and arrives after its start, whose start lies more than :data:`START_TOLERANCE`
 from where it will be, or, while it holds on its own, one made before the station knew of its
-hold. The old plan stays valid until then (docs/model.md, section 8).
+hold. The old plan stays valid until then (docs/model.md, section 8). A pending plan that
+starts before a newer one it takes is flown until the newer one starts (the station made the
+newer one from it).
 
 It holds where it is (a stop along its own track) when it hears nothing from the ground
 station for ``plan_timeout`` (at ``max_acceleration``), or when a newer plan has started that
