@@ -320,3 +320,45 @@ def test_hovering_team_sidesteps_a_known_motion():
     assert v.safe and not v.windows and v.least_clearance > sc.costs.min_clearance
     after = moved.state(np.array([20.0]))[0][:, 0]
     assert np.allclose(after - after[0], hover - hover[0])  # moved as one rigid formation
+
+
+def test_a_failed_replan_does_not_cut_short_a_sidestep_that_keeps_clear():
+    """A team hovering in a truck's way sidesteps; a re-plan made while it moves finds no plan (the
+    goals are closed off). The fallback keeps the sidestep (it stays clear over the horizon): a
+    stop would cut it short, in the truck's way (scenario2 episode 62 of benchmarks/replan.py)."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import Replanner
+    from staghunt.flight.station import GroundStation, Trigger
+    from staghunt.world import Prism
+
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    ref = ref.spliced(stop_piece(ref, 2.0, sc.vehicle))
+    hover = ref.state(np.array([8.0]))[0][:, 0]
+    truck = MovingCylinder("truck", 2.0, ((float(hover[0, 0]), 2.0), (float(hover[0, 0]), 38.0)), 3.0, start_time=8.0)
+    dyn = Dynamics(moving=(truck,))
+    config = replace(FIXED, replan_particles=20, replan_iterations=10, attempts=1)
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
+    side = rp.fallback.sidestep(ref, 8.0)
+    assert side is not None
+    base = ref.spliced(side.pieces[0])  # hovering, then the sidestep from its start
+    t0 = side.pieces[0].t0
+    rp.known.sensed["closed"] = Prism(((44.0, 0.0), (60.0, 0.0), (60.0, 40.0), (44.0, 40.0)), -math.inf, math.inf, "closed")
+    t_s = t0 + 0.4  # the re-plan would switch while the team sidesteps
+    s = base.state(np.array([t_s]))[:, :, 0]
+    out = rp.solve(Start(t_s, base, s[0], s[1], s[2]), lambda: t_s, 1, [])
+    assert not np.allclose(s[1], 0.0)  # moving
+    assert out.plan is None and out.status is ReplanStatus.KEPT and out.problems  # no plan: the sidestep goes on
+    stopped = rp.fallback.stop(base, t_s, t_s)[0]  # what the fallback flew before
+    assert not rp.acceptance.check(stopped, t_s, t_s + config.conflict_horizon).safe  # stopped in the truck's way
+    assert rp.acceptance.check(base, t_s, t_s + config.conflict_horizon).safe
+    # the station counts it as a failed re-plan: the sidestep ends short of the goals, so the team
+    # retries from there (else nothing would trigger a re-plan from that hover)
+    station = GroundStation(rp, dyn, config, base, 0.01, WORST)
+    t = t0 - 0.1
+    station._replan(t, Trigger(Cause.UNCOMMITTED, "UAV1 refused plan 1 (start)"))
+    assert station.records[-1].status is ReplanStatus.KEPT and station.job.message is None
+    assert station.stopped_at == t and station.stops == 1
+    assert station._trigger(t + config.retry_interval, False).cause is Cause.RETRY

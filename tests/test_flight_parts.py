@@ -1,18 +1,27 @@
-"""The flight room's parts on their own, without simulating vehicles: the radio link, and what a
-UAV decides on board (which plan it takes, when it holds, its reflex)."""
+"""The flight room's parts on their own, without simulating vehicles: the radio link, what a
+UAV decides on board (which plan it takes, when it holds, its reflex), and when the ground
+station sends a re-plan."""
 
 from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink
+from staghunt import load_scenario
+from staghunt.engine import get_engine
+from staghunt.flight import FlyConfig
+from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink, Telemetry
 from staghunt.flight.onboard import START_TOLERANCE, Onboard, hold_piece
+from staghunt.flight.replan import Replanner
+from staghunt.flight.station import PLAN_COPIES, GroundStation
 from staghunt.task import VehicleLimits
 from staghunt.trajectory.quintic import Reference, timed_path
 from staghunt.trajectory.team import Track
 from staghunt.world import Cylinder
-from staghunt.world.dynamic import Link
+from staghunt.world.dynamic import Dynamics, Link
 
 LIMITS = VehicleLimits()
 
@@ -77,6 +86,33 @@ def test_a_plan_in_time_from_where_the_uav_is_is_taken_at_its_start():
     assert np.allclose(uav.track.state(t)[0][0, 0], new.state(t)[0][0, 0])
     uav.receive(3.1, PlanMessage(1, new, 3.0, (0, 1)), pos, acks)  # a copy: acknowledged again
     assert acks[-1] == Ack(0, 1, True)
+
+
+
+def test_a_plan_made_from_a_pending_one_is_taken_and_both_are_flown_in_turn():
+    """The station makes plan 2 from plan 1 (sent, not started yet: it believes the UAV will fly
+    it): plan 2 starts 2 s after plan 1, 2.9 m aside of the old path. The UAV takes it (it
+    once checked plan 2's start against its track without plan 1, refused it and, with every
+    re-plan made so, never took one), flies plan 1 from its start and plan 2 from its own."""
+    ref = _plan()
+    uav = _onboard(ref)
+    one = _spliced(ref, 3.0, 0.0)  # bends 5 m aside
+    two = _spliced(one, 5.0, 0.0)
+    assert np.linalg.norm(two.state(np.array([5.0]))[0][0, 0] - ref.state(np.array([5.0]))[0][0, 0]) > START_TOLERANCE
+    acks: list[Ack] = []
+    pos = ref.state(np.array([2.5]))[0][0, 0]
+    uav.receive(2.5, PlanMessage(1, one, 3.0, (0, 1)), pos, acks)
+    uav.receive(2.6, PlanMessage(2, two, 5.0, (0, 1)), ref.state(np.array([2.6]))[0][0, 0], acks)
+    assert acks == [Ack(0, 1, True), Ack(0, 2, True)] and uav.pending.version == 2
+    for t, version in ((2.99, 0), (3.0, 1), (4.0, 1), (4.99, 1), (5.0, 2)):
+        uav.receive(t, Heartbeat(2, 5.0), pos, acks)  # the station names plan 2
+        uav.step(t, 0.01)
+        assert uav.version == version and uav.hold is None
+    for t, plan in ((2.0, ref), (4.5, one), (6.0, two)):
+        assert np.allclose(uav.track.state(np.array([t]))[0][0, 0], plan.state(np.array([t]))[0][0, 0])
+    late = _onboard(ref)  # a UAV that missed plan 1 still refuses plan 2: it would not start from there
+    late.receive(2.6, PlanMessage(2, two, 5.0, (0, 1)), ref.state(np.array([2.6]))[0][0, 0], acks)
+    assert acks[-1] == Ack(0, 2, False, "start")
 
 
 def test_a_late_plan_or_one_from_elsewhere_is_refused_and_the_uav_holds_on_its_old_one():
@@ -174,3 +210,62 @@ def test_the_reflex_keeps_off_a_holding_team_mate():
     other.receive(2.0, Beacon(1, 2.0, ahead + [0.0, 1.0, 0.0], False), ref.state(np.array([2.0]))[0][0, 0], [])
     other.reflex(2.0)
     assert other.brake_at is None  # a team-mate flying its plan reserves nothing
+
+
+def test_a_plan_due_at_a_tick_that_starts_another_replan_is_still_sent():
+    """Two pop-ups reported 0.3 s apart, each re-planned with a fixed latency of 0.3 s: the first
+    plan is due at the very tick whose telemetry triggers the second re-plan. It leaves the
+    station at that tick (the second job once replaced it, and its plan was never sent: the team
+    flew on towards what it avoided)."""
+    sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    dyn = Dynamics()
+    config = FlyConfig(latency=0.3, replan_rate=0)
+    planner = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
+    station = GroundStation(planner, dyn, config, ref, 0.01, Link().worst_delay)
+    pops = [Cylinder(30.0, 15.0, 2.0, "popA"), Cylinder(42.0, 23.0, 2.0, "popB")]
+
+    def telemetry(t: float, n: int, seen: tuple[Cylinder, ...]) -> Telemetry:
+        p, v = ref.state(np.array([t]))[:2, n, 0]
+        return Telemetry(n, t, p, v, 0, None, tuple((s.name, s) for s in seen))
+
+    assert [m for _, m in station.tick(2.0, [telemetry(1.95, 0, pops[:1])]) if isinstance(m, PlanMessage)] == []
+    first = station.records[-1]
+    assert first.version == 1 and first.effect_time == pytest.approx(2.3) and first.status.solved
+    out = station.tick(2.3, [telemetry(2.25, 1, pops[1:])])  # the second pop-up: a re-plan now
+    assert station.records[-1].time == pytest.approx(2.3) and len(station.records) == 2
+    sent = [(n, m.version) for n, m in out if isinstance(m, PlanMessage)]
+    assert sorted(sent) == sorted([(0, 1), (1, 1)] * PLAN_COPIES)  # plan 1 leaves now, twice to each UAV
+    assert station.released[0] == 1 and 1 in station.plans
+    assert [m.version for _, m in out if isinstance(m, Heartbeat)] == [1, 1]  # the heartbeat names it
+    assert station.release(2.3) == []  # the second job is not due yet
+    later = [m.version for _, m in station.release(2.6) if isinstance(m, PlanMessage)]
+    assert later == [2] * (2 * PLAN_COPIES) and station.released[0] == 2
+
+
+def test_the_station_does_not_believe_a_holding_uav_flies_a_plan_made_before_its_hold():
+    """The newest plan sent counts in the station's belief from its start, except for a UAV whose
+    hold it did not know of: that UAV refuses it, and a plan made from it would start where the
+    UAV is not (scenario2 episode 8: UAV1 refused every later plan, 'start', until the flight
+    broke off)."""
+    sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    dyn = Dynamics()
+    config = FlyConfig(latency=0.3, replan_rate=0)
+    planner = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
+    station = GroundStation(planner, dyn, config, ref, 0.01, Link().worst_delay)
+    station._observe(2.1, [Telemetry(0, 2.0, *ref.state(np.array([2.0]))[:2, 0, 0], 0, (2.0, HoldReason.REFLEX), ())])
+    assert station.held == [2.0, None]
+    swerve = _spliced(ref, 3.0, 0.0)
+    station.plans[1] = PlanMessage(1, swerve, 3.0, (0, 1), (None, None))  # made before the hold was known
+    station.released = (1, 3.0)
+    at = np.array([5.0])
+    believed = station.team.state(at)[0][:, 0]
+    assert np.allclose(believed[1], swerve.state(at)[0][1, 0])  # UAV2 will fly it
+    assert np.allclose(believed[0], station.tracks[0].state(at)[0][0, 0])  # UAV1 holds
+    assert np.linalg.norm(believed[0] - swerve.state(at)[0][0, 0]) > 1.0
+    station.plans[2] = PlanMessage(2, swerve, 3.0, (0, 1), (2.0, None))  # one made knowing it
+    station.released = (2, 3.0)
+    assert np.allclose(station.team.state(at)[0][:, 0], swerve.state(at)[0][:, 0])

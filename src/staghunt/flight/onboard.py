@@ -5,7 +5,9 @@ that reaches it in time, whose start agrees with where the UAV will be, becomes 
 acknowledged; the UAV switches to it at its start. It refuses (and says why) a plan that opens
 with a path and arrives after its start, whose start lies more than :data:`START_TOLERANCE`
 from where it will be, or, while it holds on its own, one made before the station knew of its
-hold. The old plan stays valid until then (docs/model.md, section 8).
+hold. The old plan stays valid until then (docs/model.md, section 8). A pending plan that
+starts before a newer one it takes is flown until the newer one starts (the station made the
+newer one from it).
 
 It holds where it is (a stop along its own track) when it hears nothing from the ground
 station for ``plan_timeout`` (at ``max_acceleration``), or when a newer plan has started that
@@ -90,6 +92,9 @@ class Onboard:
     seen: dict[str, Cylinder | Prism] = field(default_factory=dict)
     holding_mates: dict[int, np.ndarray] = field(default_factory=dict)
     holds: int = 0
+    folded: list[tuple[float, int]] = field(default_factory=list)
+    """Plans taken into the track ahead of their start (start, version): a newer plan that starts
+    after the pending one was taken, and the pending one is flown until then."""
 
     def receive(self, t: float, message: Any, pos: np.ndarray, ack: list[Ack]) -> None:
         """Take one message at ``t``, at the UAV's position ``pos``; acknowledgements go to ``ack``."""
@@ -119,21 +124,32 @@ class Onboard:
             ack.append(Ack(self.n, message.version, False, "hold"))
             return
         at = max(message.splice, t)
-        expect = self.track.state(np.array([at]))[0][0, 0] + (pos - self.track.state(np.array([t]))[0][0, 0])
+        track, before = self.track, self.pending
+        if before is not None and before.splice < at:
+            # the pending plan starts first: the station made this one from it, and it is flown
+            # until this one starts
+            track = track.then(before.splice, before.plan, self.n)
+        expect = track.state(np.array([at]))[0][0, 0] + (pos - track.state(np.array([t]))[0][0, 0])
         start = message.plan.state(np.array([at]))[0][self.n, 0]
         if float(np.linalg.norm(start - expect)) > START_TOLERANCE:
             ack.append(Ack(self.n, message.version, False, "start"))
             return
+        if track is not self.track:
+            self.track = track
+            self.folded.append((before.splice, before.version))
         self.pending = message
         ack.append(Ack(self.n, message.version, True))
 
     def step(self, t: float, dt: float) -> None:
         """Switch to a pending plan that starts, hold when the ground station is silent or a
         plan was missed, brake when the reflex says so."""
+        while self.folded and t >= self.folded[0][0] - 1e-9:  # a plan taken ahead starts
+            self.version, self.hold, self.brake_at = self.folded.pop(0)[1], None, None
         p = self.pending
         if p is not None and t >= p.splice - 1e-9:
             self.track = self.track.then(p.splice if not p.stop_first else min(p.splice, t), p.plan, self.n)
             self.version, self.pending, self.hold, self.brake_at = p.version, None, None, None
+            self.folded.clear()
         if self.hold is None:
             missed = self.newest[0] > max(self.version, self.pending.version if self.pending else 0)
             if missed and t > self.newest[1] + dt:
@@ -146,6 +162,7 @@ class Onboard:
     def _hold(self, t: float, reason: HoldReason) -> None:
         self.track = self.track.then(t, hold_piece(self.track, t, self.limits, reason), 0)
         self.hold, self.pending, self.brake_at = (t, reason), None, None
+        self.folded.clear()
         self.holds += 1
 
     def reflex(self, t: float) -> None:

@@ -31,7 +31,7 @@ class ReplanStatus(str, Enum):
     stop to hover, no plan yet; ``EMERGENCY_STOP`` the same at once, braking at two or three
     times the acceleration; ``SIDESTEP`` a hovering team moved as a whole out of a known
     motion's way; ``KEPT`` nothing: the current plan stays (a receding-horizon re-plan that
-    found nothing better, or a late plan dropped while the current one stays safe)."""
+    found nothing better, or no plan or a late one while the current one stays safe)."""
 
     REPLANNED = "replanned"
     STOP_REPLANNED = "stop, replanned"

@@ -20,8 +20,9 @@ in, carried to ``t_s`` (:meth:`Start.measured`). It
 
 From a moving state the same is solved from rest after a synchronised stop, side by side on
 two cores (:mod:`~staghunt.flight.aside`) or after the moving solve fails on one, and flown if
-the moving one fails. If neither passes, the fallback (:mod:`~staghunt.flight.fallback`): a
-stop to hover, or, hovering, a sidestep out of a known motion's way.
+the moving one fails. If neither passes, the fallback (:mod:`~staghunt.flight.fallback`):
+hovering, a sidestep out of a known motion's way; else what the team flies if it stays clear
+over the conflict horizon (a stop would cut a sidestep short), or a stop to hover.
 """
 
 from __future__ import annotations
@@ -132,7 +133,8 @@ class Replanner:
         ``scale``: budget factor (after a stop); ``windows``: predicted conflicts to solve
         around; ``deadline``: wall-clock budget (``None``: none); ``horizon``: re-solve only
         that many seconds of the route ahead and keep the rest (0: to the goals);
-        ``fallback``: stop (or sidestep) if no plan passes, else keep the current plan
+        ``fallback``: if no plan passes, sidestep, keep the current plan when it stays clear
+        over the conflict horizon, or stop; else (``False``) keep the current plan
         (:attr:`ReplanStatus.KEPT`)."""
         cfg, sc = self.config, self.scenario
         deadline = deadline or Deadline()
@@ -187,6 +189,10 @@ class Replanner:
             if moved is not None:
                 return Solved(moved, ReplanStatus.SIDESTEP, spent, tries, problems=problems, windows=used)
             soon = t_soon()
+            if self.acceptance.check(base, soon, max(t_s, soon) + cfg.conflict_horizon).safe:
+                # what the team flies (a sidestep under way, say) stays clear: a stop would only
+                # cut it short, perhaps where a known motion will pass
+                return Solved(None, ReplanStatus.KEPT, spent, tries, problems=problems, windows=used)
             plan, status = self.fallback.stop(base, soon, max(t_s, soon))
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full

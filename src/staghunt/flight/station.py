@@ -71,6 +71,9 @@ class GroundStation:
         self.replanner, self.dyn, self.config, self.dt = replanner, dyn, config, dt
         self.scenario = replanner.scenario
         self.n = self.scenario.n_uavs
+        goals = self.scenario.goals()
+        goals[:, 2] = self.scenario.world.terrain.absolute(goals[:, 0], goals[:, 1], goals[:, 2])
+        self.goals = goals
         self.worst = worst_delay
         self.tracks = [Track(((ref0.pieces[0].t0, ref0, n),)) for n in range(self.n)]
         self.history: list[dict[int, Track]] = [{0: track} for track in self.tracks]
@@ -97,8 +100,22 @@ class GroundStation:
 
     @property
     def team(self) -> RowTeam:
-        """What the station believes every UAV flies."""
-        return RowTeam(tuple(self.tracks), (0,) * self.n)
+        """What the station believes every UAV flies, the newest plan sent included from its
+        start for every UAV that has not refused it and can take it (it will switch to it before
+        anything the station sends now can start): not for a UAV whose hold the plan did not
+        know of (it refuses such a plan; built on it, every later plan would start where that
+        UAV is not)."""
+        p = self.plans.get(self.released[0])
+        acks = self.acks.get(self.released[0], {}) if p is not None else {}
+
+        def takes(n: int) -> bool:
+            knew = p.holds[n] if len(p.holds) > n else None
+            return (self.taken[n] < p.version and acks.get(n) is not False
+                    and (self.held[n] is None or knew == self.held[n]))
+
+        tracks = tuple(tr.then(p.splice, p.plan, n) if p is not None and takes(n) else tr
+                       for n, tr in enumerate(self.tracks))
+        return RowTeam(tracks, (0,) * self.n)
 
     def _took(self, n: int, version: int) -> None:
         if version > self.taken[n] and version in self.plans:
@@ -153,9 +170,13 @@ class GroundStation:
 
     def tick(self, t: float, inbox: list[Any]) -> list[tuple[int, Any]]:
         """One planner tick at ``t`` with the messages that reached the station; returns the
-        messages it sends now (heartbeats, plans sent again)."""
+        messages it sends now (a plan whose latency has just passed, heartbeats, plans sent
+        again)."""
         self._observe(t, inbox)
-        job = self.job if self.job is not None and t < self.job.release - 1e-9 else None
+        # a job whose latency has passed leaves first: a re-plan or a certificate started at this
+        # tick would replace it, and its plan would never be sent
+        released = self.release(t)
+        job = self.job
         trigger = None
         if job is None or job.cause is Cause.RECEDING:  # an event pre-empts a receding-horizon job
             trigger = self._trigger(t, job is not None)
@@ -168,9 +189,9 @@ class GroundStation:
             self._replan(t, trigger)
         elif job is None and self.to_certify is not None:
             self._certify(t)
-        out: list[tuple[int, Any]] = [(n, Heartbeat(*self.released)) for n in range(self.n)]
+        out = released + [(n, Heartbeat(*self.released)) for n in range(self.n)]
         p = self.plans.get(self.released[0])
-        if p is not None and (t + self.worst < p.splice or p.stop_first):
+        if p is not None and not released and (t + self.worst < p.splice or p.stop_first):
             acks = self.acks.get(p.version, {})
             out += [(n, p) for n in p.uavs if n not in acks and t < p.plan.arrival]
         return out
@@ -309,8 +330,11 @@ class GroundStation:
     def _after(self, t: float, trigger: Trigger, status: ReplanStatus) -> None:
         """The stop-and-retry bookkeeping of a re-plan's outcome."""
         cfg = self.config
+        # a re-plan that kept the current plan fails too when that plan ends short of the goals
+        # (a stop or a sidestep, flown on since no stop replaced it): the team retries from there
         failed = status in (ReplanStatus.STOP, ReplanStatus.EMERGENCY_STOP) or (
-            status is ReplanStatus.KEPT and trigger.cause is Cause.RETRY)
+            status is ReplanStatus.KEPT and (trigger.cause is Cause.RETRY
+                                             or (trigger.cause is not Cause.RECEDING and self._short())))
         if status is ReplanStatus.STOP_REPLANNED:
             self.stops += 1
         if status is ReplanStatus.SIDESTEP or (status is ReplanStatus.KEPT and not failed):
@@ -326,6 +350,12 @@ class GroundStation:
                                 f"passes ({'; '.join(last.problems[:2]) or 'no feasible plan'})")
         else:
             self.stopped_at, self.retries = -1.0, 0
+
+    def _short(self) -> bool:
+        """Whether what the station believes the team flies ends more than 1 m from a goal."""
+        team = self.team
+        end = team.state(np.array([end_time(team)]))[0][:, 0]
+        return bool(np.any(np.linalg.norm(end - self.goals, axis=-1) > 1.0))
 
     def waiting(self, t: float) -> float:
         """Until when the flight must go on for the station: a job in progress, the retries of a
