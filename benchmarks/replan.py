@@ -4,6 +4,7 @@
     python benchmarks/replan.py --jobs 2 --link-delay 0.3 --link-loss 0.05 --tag lossy   # the same episodes, a worse link
     python benchmarks/replan.py --episodes 10 --wedge-episodes 2 --tag smoke             # a smoke run
     python benchmarks/replan.py --summarise results/replan_lossy.json                    # the table of a saved run
+    python benchmarks/replan.py --summarise results/replan_before.json --tag before_judged   # ... judged again, saved
     python benchmarks/replan.py --solve-only --episodes 30 --wedge-episodes 10           # first re-plans alone, both cores
 
 The episodes (benchmarks/replan_episodes.py: a site vehicle or the crane's jib, then a pop-up
@@ -118,7 +119,9 @@ def _judged(row: dict[str, Any]) -> dict[str, Any]:
     contact = row["min_clearance_m"] < 0 or row["separation_margin_m"] + d_s < 0
     status = "unsafe" if contact else ("breach" if kinds else row["status"])
     return {**row, "status": status, "contact": contact, "breaches": kinds, "holds": 0,
-            "replans": [{**x, "receding": False, "sent": True, "overran": None, "late": None} for x in row["replans"]]}
+            "replans": [{**x, "receding": False, "sent": True, "overran": None, "late": None,
+                         "solved": "replanned" in x["status"],
+                         "cause": "sensed" if x["trigger"].startswith("sensed") else "other"} for x in row["replans"]]}
 
 
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -139,25 +142,36 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "arrived_without_stop": len(clean), "episodes_with_stop": sum(r["stops"] > 0 for r in ok),
         "episodes_with_hold": sum(r["holds"] > 0 for r in ok),
         "least_clearance_m": min((r["min_clearance_m"] for r in ok), default=None),
+        "median_least_clearance_m": float(np.median([r["min_clearance_m"] for r in ok])) if ok else None,
         "extra_time_s_median": float(np.median(extra)) if extra else None,
         "extra_time_s_range": [float(min(extra)), float(max(extra))] if extra else None,
         "event_replans": len(events),
         "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
         "latency_p95_ms": float(np.percentile(lat, 95)) if lat.size else None,
         "latency_max_ms": float(lat.max()) if lat.size else None,
+        **_percentiles("sensed_latency", [x["latency_s"] * 1000 for x in events if x["cause"] == "sensed"]),
         "over_deadline": count("overran") if count else None, "late": count("late") if count else None,
         "solved": len(solved), "certified": sum(x["certified"] for x in solved),
+        "sensed_solved": sum(x["cause"] == "sensed" for x in solved),
+        "sensed_certified": sum(x["certified"] for x in solved if x["cause"] == "sensed"),
+        "episodes_with_emergency_stop": sum(any(x["status"] == "emergency stop" for x in r["replans"]) for r in ok),
         "receding": len(receding), "receding_sent": sum(x["sent"] for x in receding),
         "sim_speed_median": float(np.median(speed)) if speed else None,
     }
+
+
+def _percentiles(name: str, values: list[float]) -> dict[str, float | None]:
+    """``{name_p50_ms, name_p95_ms}`` of ``values`` (ms; ``None`` if there are none)."""
+    v = np.array(values)
+    return {f"{name}_p{q}_ms": float(np.percentile(v, q)) if v.size else None for q in (50, 95)}
 
 
 def table(summary: dict[str, dict[str, Any]], title: str = "set") -> str:
     """The markdown table of :func:`summarise` per set."""
     lines = [f"| {title} | arrived / stopped / breach / unsafe | contacts | breaches: clearance / separation / ground / "
              "ceiling | arrived without stop or hold | stops / holds (episodes) | extra time median [range] (s) | "
-             "event re-plans | latency p50 / p95 / max (ms) | over deadline / late | plans certified | "
-             "receding: sent / made | simulation (x real time) |", "|" + "---|" * 14]
+             "event re-plans | latency p50 / p95 / max (ms) | sensed obstacle: p50 / p95 (ms) | over deadline / late | "
+             "plans certified | receding: sent / made | simulation (x real time) |", "|" + "---|" * 15]
     for k, s in summary.items():
         ex, n = s["extra_time_s_range"], s["episodes"] - s["refused"]
         na = "-"
@@ -170,6 +184,8 @@ def table(summary: dict[str, dict[str, Any]], title: str = "set") -> str:
             + (f"{s['extra_time_s_median']:.1f} [{ex[0]:.1f}, {ex[1]:.1f}]" if ex else na) + " | "
             f"{s['event_replans']} | "
             + (f"{s['latency_p50_ms']:.0f} / {s['latency_p95_ms']:.0f} / {s['latency_max_ms']:.0f}" if s["event_replans"] else na)
+            + " | " + (f"{s['sensed_latency_p50_ms']:.0f} / {s['sensed_latency_p95_ms']:.0f}"
+                       if s.get("sensed_latency_p50_ms") is not None else na)
             + " | " + (f"{s['over_deadline']} / {s['late']}" if s["over_deadline"] is not None else na) + " | "
             f"{s['certified']}/{s['solved']} | "
             + (f"{s['receding_sent']} / {s['receding']}" if s["receding"] else na) + " | "
@@ -227,7 +243,8 @@ def main() -> int:
     ap.add_argument("--episodes-file", type=Path, default=EPISODES, help="the saved episodes (default "
                     "results/replan_episodes.json; built there if missing)")
     ap.add_argument("--out", type=Path, default=HERE / "results")
-    ap.add_argument("--summarise", type=Path, metavar="JSON", help="only print the table of a saved run")
+    ap.add_argument("--summarise", type=Path, metavar="JSON", help="only print the table of a saved run (judged by "
+                    "this script's rules; with --tag, also write its summary to results/replan_TAG.json)")
     ap.add_argument("--solve-only", action="store_true",
                     help="only each episode's first re-plan, on the plan, one at a time with the engine's adaptive "
                     "threads (the latency on the whole machine); writes replan_solve.json")
@@ -236,8 +253,14 @@ def main() -> int:
     args = ap.parse_args()
     started = provenance.start()
     if args.summarise is not None:
-        rows = json.loads(args.summarise.read_text())["episodes"]
-        print(table({k: summarise([r for r in rows if r["kind"] == k]) for k in sorted({r["kind"] for r in rows})}))
+        saved = json.loads(args.summarise.read_text())
+        rows = saved["episodes"]
+        summary = {k: summarise([r for r in rows if r["kind"] == k]) for k in sorted({r["kind"] for r in rows})}
+        print(table(summary))
+        if args.tag:  # the saved run judged by this script's rules, with the saved run's date, code and machine
+            out = {k: saved[k] for k in ("date", "code", "machine") if k in saved}
+            out.update(judged_from=args.summarise.name, summary=summary)
+            (args.out / f"replan_{args.tag}.json").write_text(json.dumps(out, indent=1, default=str) + "\n")
         return 0
     overrides = _overrides(args.set)
     if args.latency != "measured":

@@ -301,17 +301,23 @@ def test_cli_latency_and_link_options_are_checked(tmp_path, capsys):
         assert needle in capsys.readouterr().err
 
 
-def test_hovering_team_sidesteps_a_known_motion():
-    from staghunt.engine import get_engine
-    from staghunt.flight.replan import Replanner
-
+def _hovering_in_a_trucks_way():
+    """Two UAVs that stop at 2 s and hover, and a truck that crosses where UAV1 hovers from 8 s:
+    the scenario, the team's reference, its hover positions ``(N, 3)`` and the truck."""
     sc = load_scenario(SMALL)
     pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
     ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
     ref = ref.spliced(stop_piece(ref, 2.0, sc.vehicle))
     hover = ref.state(np.array([8.0]))[0][:, 0]
     truck = MovingCylinder("truck", 2.0, ((float(hover[0, 0]), 2.0), (float(hover[0, 0]), 38.0)), 3.0, start_time=8.0)
-    dyn = Dynamics(moving=(truck,))
+    return sc, ref, hover, Dynamics(moving=(truck,))
+
+
+def test_hovering_team_sidesteps_a_known_motion():
+    from staghunt.engine import get_engine
+    from staghunt.flight.replan import Replanner
+
+    sc, ref, hover, dyn = _hovering_in_a_trucks_way()
     rp = Replanner(replace(sc, dynamics=dyn), dyn, FIXED, get_engine("numpy"), np.random.default_rng(0))
     assert rp.acceptance.check(ref, 8.0, 18.0).windows  # hovering there, the truck hits
     moved = rp.fallback.sidestep(ref, 8.0)
@@ -332,13 +338,7 @@ def test_a_failed_replan_does_not_cut_short_a_sidestep_that_keeps_clear():
     from staghunt.flight.station import GroundStation, Trigger
     from staghunt.world import Prism
 
-    sc = load_scenario(SMALL)
-    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
-    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
-    ref = ref.spliced(stop_piece(ref, 2.0, sc.vehicle))
-    hover = ref.state(np.array([8.0]))[0][:, 0]
-    truck = MovingCylinder("truck", 2.0, ((float(hover[0, 0]), 2.0), (float(hover[0, 0]), 38.0)), 3.0, start_time=8.0)
-    dyn = Dynamics(moving=(truck,))
+    sc, ref, hover, dyn = _hovering_in_a_trucks_way()
     config = replace(FIXED, replan_particles=20, replan_iterations=10, attempts=1)
     rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
     side = rp.fallback.sidestep(ref, 8.0)

@@ -212,18 +212,24 @@ def test_the_reflex_keeps_off_a_holding_team_mate():
     assert other.brake_at is None  # a team-mate flying its plan reserves nothing
 
 
-def test_a_plan_due_at_a_tick_that_starts_another_replan_is_still_sent():
-    """Two pop-ups reported 0.3 s apart, each re-planned with a fixed latency of 0.3 s: the first
-    plan is due at the very tick whose telemetry triggers the second re-plan. It leaves the
-    station at that tick (the second job once replaced it, and its plan was never sent: the team
-    flew on towards what it avoided)."""
+def _station_on_two_straight_paths():
+    """A ground station (fixed latency 0.3 s, no receding horizon) over two UAVs flying straight
+    across flight_small: the team's reference and the station."""
     sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
     pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
     ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
     dyn = Dynamics()
     config = FlyConfig(latency=0.3, replan_rate=0)
     planner = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
-    station = GroundStation(planner, dyn, config, ref, 0.01, Link().worst_delay)
+    return ref, GroundStation(planner, dyn, config, ref, 0.01, Link().worst_delay)
+
+
+def test_a_plan_due_at_a_tick_that_starts_another_replan_is_still_sent():
+    """Two pop-ups reported 0.3 s apart, each re-planned with a fixed latency of 0.3 s: the first
+    plan is due at the very tick whose telemetry triggers the second re-plan. It leaves the
+    station at that tick (the second job once replaced it, and its plan was never sent: the team
+    flew on towards what it avoided)."""
+    ref, station = _station_on_two_straight_paths()
     pops = [Cylinder(30.0, 15.0, 2.0, "popA"), Cylinder(42.0, 23.0, 2.0, "popB")]
 
     def telemetry(t: float, n: int, seen: tuple[Cylinder, ...]) -> Telemetry:
@@ -249,13 +255,7 @@ def test_the_station_does_not_believe_a_holding_uav_flies_a_plan_made_before_its
     hold it did not know of: that UAV refuses it, and a plan made from it would start where the
     UAV is not (scenario2 episode 8: UAV1 refused every later plan, 'start', until the flight
     broke off)."""
-    sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
-    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
-    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
-    dyn = Dynamics()
-    config = FlyConfig(latency=0.3, replan_rate=0)
-    planner = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
-    station = GroundStation(planner, dyn, config, ref, 0.01, Link().worst_delay)
+    ref, station = _station_on_two_straight_paths()
     station._observe(2.1, [Telemetry(0, 2.0, *ref.state(np.array([2.0]))[:2, 0, 0], 0, (2.0, HoldReason.REFLEX), ())])
     assert station.held == [2.0, None]
     swerve = _spliced(ref, 3.0, 0.0)
