@@ -90,9 +90,9 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
         "extra_time_s": None if not math.isfinite(r.extra_time) else float(r.extra_time),
         "flight_s": float(r.times[-1]), "wall_s": wall, "link": r.link,
         "popup_uav": e["popup_uav"], "popup_lead_s": e["popup_lead_s"],
-        **popup_reach(r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
-                      r.scenario.vehicle.max_acceleration,
-                      1.0 / r.dynamics.sensing.rate + REFLEX_PERIOD + config.reflex_latency),
+        **(popup_reach(r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
+                       r.scenario.vehicle.max_acceleration,
+                       1.0 / r.dynamics.sensing.rate + REFLEX_PERIOD + config.reflex_latency) if e["events"] else {}),
     }
 
 
