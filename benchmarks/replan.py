@@ -19,7 +19,9 @@ the radio link of ``--link-*`` (delay, jitter, loss) between the ground station 
 ``--jobs 2`` flies two episodes side by side, one per core: each re-plan then has one core,
 and its measured latency, and so the flight, depends on how busy the machine is (the load
 average is recorded). Reported per set (judged by the one safety judge on the simulated
-vehicles, against the true world, every 10 ms): endings, contacts, breaches of each required
+vehicles, against the true world, every 10 ms): endings, contacts (and of them those where the
+pop-up appeared within a UAV's braking reach on the flown timing: each row gives the flown lead,
+``popup_flown_lead_s``, beside the built one, ``popup_lead_s``), breaches of each required
 margin, episodes that arrived with no stop to hover and no UAV holding on its own, extra time
 against the plan without events, the event re-plans' latency (the receding horizon's apart),
 overruns of the deadline, plans dropped for being late, the share of plans sent that are
@@ -55,6 +57,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
 
     warnings.simplefilter("ignore")
     from staghunt.flight import Cause, FlyConfig, fly
+    from staghunt.flight.onboard import REFLEX_PERIOD
     from staghunt.world.dynamic import Link
 
     e = job["episode"]
@@ -87,7 +90,48 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
         "extra_time_s": None if not math.isfinite(r.extra_time) else float(r.extra_time),
         "flight_s": float(r.times[-1]), "wall_s": wall, "link": r.link,
         "popup_uav": e["popup_uav"], "popup_lead_s": e["popup_lead_s"],
+        **(popup_reach(r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
+                       r.scenario.vehicle.max_acceleration,
+                       1.0 / r.dynamics.sensing.rate + REFLEX_PERIOD + config.reflex_latency) if e["events"] else {}),
     }
+
+
+def popup_reach(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
+                radii: list[float], max_acceleration: float, notice_s: float) -> dict[str, Any]:
+    """The pop-up as the flight met it (its ``popup_lead_s`` is on the timing of the plan the
+    episode was built on; the receding horizon and the link re-time the flight): at its
+    appearance, for the UAV closest to contact along its velocity then (``times`` ``(T,)``,
+    ``actual``, ``velocity`` ``(N, T, 3)``; ``popup``: the episode's event), the seconds until
+    its body would touch the pop-up flying on (``popup_flown_lead_s``, 0 if it already does,
+    ``None`` if no UAV closes in), that UAV (0-based), and whether the pop-up appeared within its
+    braking reach (``popup_within_reach``): the distance to contact at most what it flies until it
+    notices (``notice_s``: a sensor period, a reflex check and the reflex latency) plus a
+    braking stop at three times ``max_acceleration`` (the reflex's)."""
+    from staghunt.flight.onboard import REFLEX_FACTOR
+    from staghunt.trajectory.quintic import BRAKE_RAMP
+
+    i = min(int(np.searchsorted(times, popup["time"] - 1e-9)), len(times) - 1)
+    c = np.array([popup["x"], popup["y"]])
+    best: tuple[float, int, bool] | None = None
+    for n, r in enumerate(radii):
+        p, v = actual[n, i, :2] - c, velocity[n, i, :2]
+        reach = popup["radius"] + r
+        if np.hypot(*p) < reach:
+            lead, dist = 0.0, 0.0
+        else:  # the first s > 0 with |p + s v| = reach, if the UAV closes in
+            a, b, q = float(v @ v), float(p @ v), float(p @ p) - reach ** 2
+            disc = b * b - a * q
+            if a < 1e-12 or b >= 0 or disc < 0:
+                continue
+            lead = (-b - math.sqrt(disc)) / a
+            dist = lead * math.sqrt(a)
+        speed = float(np.linalg.norm(velocity[n, i]))
+        brake = speed ** 2 / (2 * REFLEX_FACTOR * max_acceleration * (1 - BRAKE_RAMP))
+        if best is None or lead < best[0]:
+            best = (lead, n, dist <= speed * notice_s + brake)
+    if best is None:
+        return {"popup_flown_lead_s": None, "popup_flown_uav": None, "popup_within_reach": False}
+    return {"popup_flown_lead_s": best[0], "popup_flown_uav": best[1], "popup_within_reach": best[2]}
 
 
 def _meta(job: dict[str, Any]) -> dict[str, Any]:
@@ -138,6 +182,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "episodes": len(rows), "refused": len(rows) - len(ok),
         **{s: sum(r["status"] == s for r in ok) for s in ("arrived", "stopped", "breach", "unsafe")},
         "contacts": sum(r["contact"] for r in ok),
+        "contacts_popup_within_reach": sum(r["contact"] and bool(r.get("popup_within_reach")) for r in ok),
         **{f"{k}_breaches": sum(k in r["breaches"] for r in ok) for k in ("clearance", "separation", "ground", "ceiling")},
         "arrived_without_stop": len(clean), "episodes_with_stop": sum(r["stops"] > 0 for r in ok),
         "episodes_with_hold": sum(r["holds"] > 0 for r in ok),

@@ -1,0 +1,46 @@
+"""The closed-loop benchmark's measure of how a flight met its pop-up (benchmarks/replan.py,
+``popup_reach``): the episodes place the pop-up on the timing of the plan they were built on,
+and the flown timing differs, so a row says when the pop-up really appeared."""
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+from replan import popup_reach  # noqa: E402
+
+NOTICE = 0.2  # a sensor period, a reflex check and the reflex latency (s)
+
+
+def _flight(x0: list[float], vx: list[float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """UAVs on the x axis (y = 3 k) at ``x0`` flying along x at ``vx``, sampled at 10 Hz."""
+    times = np.arange(0.0, 2.0, 0.1)
+    x0a, vxa = np.array(x0), np.array(vx)
+    actual = np.zeros((len(x0), len(times), 3))
+    actual[:, :, 0] = x0a[:, None] + vxa[:, None] * times
+    actual[:, :, 1] = 3.0 * np.arange(len(x0))[:, None]
+    velocity = np.zeros_like(actual)
+    velocity[:, :, 0] = vxa[:, None]
+    return times, actual, velocity
+
+
+@pytest.mark.parametrize(("x", "lead", "reach"), [(6.0, 0.75, False), (4.5, 0.375, True), (2.0, 0.0, True)])
+def test_popup_reach_is_the_flown_lead_and_the_braking_reach(x: float, lead: float, reach: bool) -> None:
+    """UAV1 at 4 m/s towards a pop-up (radius 2 m, body 1 m) appearing at t = 1 s: it touches it
+    after (gap - 3 m) / 4 m/s; it can stop short if the gap beyond contact exceeds what it flies
+    in 0.2 s plus a braking stop at 9 m/s^2 with its ramp (0.8 + 0.99 m). UAV2 flies away."""
+    times, actual, velocity = _flight([-4.0, 0.0], [4.0, -4.0])
+    popup = {"time": 1.0, "x": x, "y": 0.0, "radius": 2.0}
+    out = popup_reach(times, actual, velocity, popup, [1.0, 1.0], 3.0, NOTICE)
+    assert out["popup_flown_lead_s"] == pytest.approx(lead)
+    assert out["popup_flown_uav"] == 0
+    assert out["popup_within_reach"] is reach
+
+
+def test_popup_reach_none_when_no_uav_closes_in() -> None:
+    times, actual, velocity = _flight([0.0, 0.0], [-4.0, 0.0])
+    out = popup_reach(times, actual, velocity, {"time": 1.0, "x": 8.0, "y": 0.0, "radius": 2.0}, [1.0, 1.0], 3.0,
+                      NOTICE)
+    assert out == {"popup_flown_lead_s": None, "popup_flown_uav": None, "popup_within_reach": False}
