@@ -183,6 +183,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         **{s: sum(r["status"] == s for r in ok) for s in ("arrived", "stopped", "breach", "unsafe")},
         "contacts": sum(r["contact"] for r in ok),
         "contacts_popup_within_reach": sum(r["contact"] and bool(r.get("popup_within_reach")) for r in ok),
+        "popups_within_reach": sum(bool(r.get("popup_within_reach")) for r in ok),
         **{f"{k}_breaches": sum(k in r["breaches"] for r in ok) for k in ("clearance", "separation", "ground", "ceiling")},
         "arrived_without_stop": len(clean), "episodes_with_stop": sum(r["stops"] > 0 for r in ok),
         "episodes_with_hold": sum(r["holds"] > 0 for r in ok),
