@@ -362,3 +362,37 @@ def test_a_failed_replan_does_not_cut_short_a_sidestep_that_keeps_clear():
     assert station.records[-1].status is ReplanStatus.KEPT and station.job.message is None
     assert station.stopped_at == t and station.stops == 1
     assert station._trigger(t + config.retry_interval, False).cause is Cause.RETRY
+
+
+@pytest.mark.parametrize("have", [1.2, 0.9])
+def test_a_replan_from_close_to_an_obstacle_does_not_come_closer_than_the_reflex_allows(have):
+    """A UAV hovering ``have`` m from a pop-up (less than the game's clearance; 0.9 m: less than
+    the required 1 m, after an emergency stop) re-plans past it. The plan may leave sideways but
+    not come closer than the UAV's own reflex lets its reference come (the required clearance or
+    what it has, less the reflex's tolerance): relaxed to 0.8 of what it had, it came to 0.84 and
+    0.59 m, the UAV held, re-planned from there and came closer again, hold after hold, into a
+    truck's path (scenario2 episode 67 of benchmarks/replan.py)."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.known import Start
+    from staghunt.flight.onboard import REFLEX_TOLERANCE
+    from staghunt.flight.replan import Replanner
+    from staghunt.safety.measure import static_clearance
+
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    ref = ref.spliced(stop_piece(ref, 2.0, sc.vehicle))
+    t_s = 8.0
+    s = ref.state(np.array([t_s]))[:, :, 0]
+    a = math.radians(-30.0)  # ahead of UAV1, on its right: the way to its goal passes it
+    centre = s[0][0, :2] + (2.0 + 0.5 + have) * np.array([math.cos(a), math.sin(a)])
+    popup = Cylinder(float(centre[0]), float(centre[1]), 2.0, "popup")
+    rp = Replanner(sc, Dynamics(), FIXED, get_engine("numba", threads=1), np.random.default_rng(0))
+    rp.known.sensed["popup"] = popup
+    out = rp.solve(Start(t_s, ref, s[0], s[1], s[2]), lambda: t_s, 1, [])
+    assert out.status is ReplanStatus.REPLANNED
+    pos = out.plan.state(np.arange(out.plan.pieces[0].t0, out.plan.arrival, 0.05))[0]
+    clear = static_clearance((popup,), (), pos, np.array([0.5, 0.5]))[0]
+    assert clear[0] == pytest.approx(have, abs=1e-6)
+    assert clear.min() >= min(sc.costs.min_clearance, have) - REFLEX_TOLERANCE
+    assert out.plan.state(np.array([out.plan.arrival]))[0][0, 0, 0] > centre[0]  # past it

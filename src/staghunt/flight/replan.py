@@ -61,10 +61,6 @@ MAX_STRETCH = 2.0
 (a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
 LEAD_IN_MIN_SPEED = 0.5
 """m/s: below this the switch state counts as at rest for the lead-in (:meth:`Replanner._lead_in`)."""
-RELAX_KEEP = 0.8
-"""A UAV that rests closer than the re-plan's clearance to an obstacle (an emergency stop short of
-a pop-up) re-plans with the clearance relaxed to this share of what it has: its paths may
-leave sideways, not come closer (the solver's plans lie on their constraints)."""
 GAME_SHARE = 0.4
 """Share of the deadline the game's rounds may take; the rest is for timing, acceptance and
 the certificate."""
@@ -392,7 +388,10 @@ class Replanner:
         goals (default the scenario's), the clearance and ``d_s`` grown as the acceptance asks
         plus the curve's and timing's slack (:mod:`~staghunt.flight.known`). A UAV whose start
         is already closer than that to an obstacle (a stop short of a pop-up) relaxes the
-        clearance to :data:`RELAX_KEEP` of what it has, so that a path away from it exists."""
+        clearance to what it has, so that a path away from it exists: its paths may leave
+        sideways, not come closer (the solver's plans lie on their constraints: relaxed to a share
+        of it, they came closer than the UAV's own reflex lets a reference come, it held, and
+        re-planned from there closer still: scenario2 episode 67 of benchmarks/replan.py)."""
         from staghunt.flight.known import CURVE_SLACK
 
         m = self.acceptance.margins
@@ -405,7 +404,7 @@ class Replanner:
         r = np.array([u.radius for u in sub.team])
         have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
         if have < need:
-            sub = replace(sub, costs=replace(sub.costs, min_clearance=RELAX_KEEP * max(0.0, have)))
+            sub = replace(sub, costs=replace(sub.costs, min_clearance=max(0.0, have)))
         return sub
 
 
