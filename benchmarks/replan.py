@@ -192,10 +192,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "extra_time_s_median": float(np.median(extra)) if extra else None,
         "extra_time_s_range": [float(min(extra)), float(max(extra))] if extra else None,
         "event_replans": len(events),
-        "latency_p50_ms": float(np.percentile(lat, 50)) if lat.size else None,
-        "latency_p95_ms": float(np.percentile(lat, 95)) if lat.size else None,
+        **_percentiles("latency", lat),
         "latency_max_ms": float(lat.max()) if lat.size else None,
-        **_percentiles("sensed_latency", [x["latency_s"] * 1000 for x in events if x["cause"] == "sensed"]),
+        **_percentiles("sensed_latency", np.array([x["latency_s"] for x in events if x["cause"] == "sensed"]) * 1000),
         "over_deadline": count("overran") if count else None, "late": count("late") if count else None,
         "solved": len(solved), "certified": sum(x["certified"] for x in solved),
         "sensed_solved": sum(x["cause"] == "sensed" for x in solved),
@@ -206,10 +205,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-def _percentiles(name: str, values: list[float]) -> dict[str, float | None]:
-    """``{name_p50_ms, name_p95_ms}`` of ``values`` (ms; ``None`` if there are none)."""
-    v = np.array(values)
-    return {f"{name}_p{q}_ms": float(np.percentile(v, q)) if v.size else None for q in (50, 95)}
+def _percentiles(name: str, ms: np.ndarray) -> dict[str, float | None]:
+    """``{name_p50_ms, name_p95_ms}`` of the latencies ``ms`` ``(R,)`` (``None`` if there are none)."""
+    return {f"{name}_p{q}_ms": float(np.percentile(ms, q)) if ms.size else None for q in (50, 95)}
 
 
 def table(summary: dict[str, dict[str, Any]], title: str = "set") -> str:
