@@ -171,6 +171,8 @@ def _judged(row: dict[str, Any]) -> dict[str, Any]:
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     ok = [_judged(r) for r in rows if "error" not in r]
     events = [x for r in ok for x in r["replans"] if not x["receding"]]
+    timed = [x for x in events if x.get("deadline_s") is not None]
+    least = min((x["deadline_s"] for x in timed), default=0.0)
     lat = np.array([x["latency_s"] for x in events]) * 1000
     solved = [x for r in ok for x in r["replans"] if x["solved"] and x["sent"]]
     receding = [x for r in ok for x in r["replans"] if x["receding"]]
@@ -200,6 +202,13 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "sensed_solved": sum(x["cause"] == "sensed" for x in solved),
         "sensed_certified": sum(x["certified"] for x in solved if x["cause"] == "sensed"),
         "episodes_with_emergency_stop": sum(any(x["status"] == "emergency stop" for x in r["replans"]) for r in ok),
+        "deferred_replans": sum(x["status"] == "deferred" for x in events),
+        "episodes_deferred": sum(any(x["status"] == "deferred" for x in r["replans"]) for r in ok),
+        "episodes_deferred_without_stop": sum(any(x["status"] == "deferred" for x in r["replans"]) and r["stops"] == 0
+                                              for r in ok),
+        # the re-plans of a flying team (the flight's deadline; a hovering team's has the stop budget factor)
+        **_percentiles("flying_latency", np.array([x["latency_s"] for x in timed if x["deadline_s"] <= least + 1e-9])
+                       * 1000),
         "receding": len(receding), "receding_sent": sum(x["sent"] for x in receding),
         "sim_speed_median": float(np.median(speed)) if speed else None,
     }

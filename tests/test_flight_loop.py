@@ -245,7 +245,10 @@ def test_unreachable_goal_stops_in_sync_and_exits_3(tmp_path, capsys):
     summary = json.loads((out / "flight.json").read_text())
     assert summary["status"] == "stopped" and summary["team"]["stops"] == 1 and summary["latency"] == {"fixed_s": 0.3}
     replans = json.loads((out / "replans.json").read_text())["replans"]
-    assert replans[0]["status"] == "stop" and replans[0]["cause"] == "sensed"
+    # no plan passes: while a stop can still wait, the team flies on and solves again (deferred)
+    first = next(i for i, r in enumerate(replans) if r["status"] != "deferred")
+    assert first >= 1 and all(r["cause"] == "sensed" for r in replans[: first + 1])
+    assert replans[first]["status"] == "stop"
     rows = list(csv.DictReader((out / "flight.csv").open()))
     last = [r for r in rows if float(r["t"]) == float(rows[-1]["t"])]
     assert all(float(r["x"]) < 44 - 0.5 for r in last)  # stopped short of the closed zone

@@ -269,3 +269,89 @@ def test_the_station_does_not_believe_a_holding_uav_flies_a_plan_made_before_its
     station.plans[2] = PlanMessage(2, swerve, 3.0, (0, 1), (2.0, None))  # one made knowing it
     station.released = (2, 3.0)
     assert np.allclose(station.team.state(at)[0][:, 0], swerve.state(at)[0][:, 0])
+
+
+def test_a_moving_team_with_no_plan_yet_flies_on_and_solves_again_while_a_later_stop_passes():
+    """A re-plan of a moving team that finds no plan from its state does not stop it while a
+    stop decided at the next re-plan still passes: the team flies on (no stop sent), the station
+    solves again at its next tick, warm-started, at most ``deferrals`` times in a row; then the
+    stop (or the plan from rest) as before."""
+    from staghunt.flight.records import ReplanStatus, Solved
+
+    ref, station = _station_on_two_straight_paths()
+    station.config = replace(station.config, deferrals=2)
+    asked: list[float] = []
+    answers = [ReplanStatus.DEFERRED, ReplanStatus.DEFERRED, ReplanStatus.STOP]
+
+    def solve(start, soon, scale, windows, deadline, horizon, fallback, defer):
+        asked.append(defer)
+        return Solved(None, answers[len(asked) - 1])
+
+    station.replanner.solve = solve
+    p, v = ref.state(np.array([1.95]))[:2, 0, 0]
+    seen = (("pop", Cylinder(40.0, 15.0, 2.0, "pop")),)
+    tick = 1.0 / station.dyn.sensing.rate
+    assert station.tick(2.0, [Telemetry(0, 1.95, p, v, 0, None, seen)]) == [(n, Heartbeat(0, 0.0)) for n in range(2)]
+    assert station.records[-1].status is ReplanStatus.DEFERRED and station.stops == 0 and station.stopped_at < 0
+    assert asked == [pytest.approx(0.3 + 2 * tick)]  # the next re-plan's start, at the latest
+    station.tick(2.2, [])
+    assert len(asked) == 1  # busy for the fixed latency
+    station.tick(2.3, [])
+    assert len(asked) == 2 and station.records[-1].trigger.endswith("(deferred)")
+    assert station.records[-1].cause is station.records[0].cause
+    station.tick(2.6, [])
+    assert asked[2] == 0.0  # no third deferral: the stop now
+    assert station.records[-1].status is ReplanStatus.STOP and station.stops == 1
+
+
+def test_a_stop_can_wait_while_the_team_can_still_brake_clear_of_what_it_knows():
+    """:meth:`Fallback.stop_later`: two UAVs at 5 m/s towards a pop-up on UAV1's line; a stop
+    0.3 s from now passes while the UAV is far, and not once the pop-up is within its braking
+    distance (v^2 / 2a = 4.2 m) plus the required clearance."""
+    ref, station = _station_on_two_straight_paths()
+    planner = station.replanner
+    planner.known.sensed["pop"] = Cylinder(45.0, 15.0, 2.0, "pop")
+    fb, lim = planner.fallback, planner.scenario.vehicle
+    r = planner.scenario.team[0].radius
+    margin = planner.acceptance.margins.clearance
+
+    def gap(t: float) -> float:  # UAV1's distance to the pop-up's surface, less body and margin
+        return 45.0 - 2.0 - r - margin - float(ref.state(np.array([t]))[0][0, 0, 0])
+
+    v = float(np.linalg.norm(ref.state(np.array([5.0]))[1][0, 0]))
+    brake = v ** 2 / (2 * lim.max_acceleration)
+    early = next(t for t in np.arange(0.0, 20.0, 0.1) if gap(t) < 4 * brake + v)
+    late = next(t for t in np.arange(0.0, 20.0, 0.1) if gap(t + 0.3) < brake)
+    assert early < late
+    assert fb.stop_later(ref, early, early + 0.3)
+    assert not fb.stop_later(ref, late, late + 0.3)
+
+
+def test_a_hovering_team_waits_for_a_known_motion_to_pass_before_it_gives_up():
+    """After a stop, re-plans from the hover that fail while a known motion's window (solved
+    around) is still to come do not count the goal as unreachable: the team retries until the
+    window has passed, then gives up after its retries as before."""
+    from staghunt.flight.records import ReplanStatus, Solved
+
+    ref, station = _station_on_two_straight_paths()
+    cfg = station.config
+    window = (("truck", 5.0, 12.0),)
+    answers = iter([ReplanStatus.STOP] + [ReplanStatus.KEPT] * 20)
+
+    def solve(start, soon, scale, windows, deadline, horizon, fallback, defer):
+        return Solved(None, next(answers), windows=window)
+
+    station.replanner.solve = solve
+    p, v = ref.state(np.array([1.95]))[:2, 0, 0]
+    station.tick(2.0, [Telemetry(0, 1.95, p, v, 0, None, (("pop", Cylinder(40.0, 15.0, 2.0, "pop")),))])
+    assert station.stopped_at == 2.0
+    gave_up = None
+    for k in range(1, 200):
+        t = 2.0 + 0.1 * k
+        station.tick(t, [])
+        if station.gave_up is not None:
+            gave_up = station.gave_up
+            break
+    retries = [r.time for r in station.records if r.cause.value == "retry"]
+    assert len(retries) > cfg.retries_after_stop  # went on retrying while the truck was to come
+    assert gave_up is not None and gave_up >= 12.0 and gave_up < 12.0 + cfg.retry_interval + 0.5

@@ -51,6 +51,9 @@ class FlyConfig:
     - ``reply_start``: the first reply's share of a re-plan's budget.
     - ``attempts``: solves per re-plan (each new predicted conflict with a motion adds its
       swept window and solves again); ``window_pad``: seconds added on both sides of a window.
+    - ``defer_stops``: a re-plan of a moving team that finds no plan keeps the current plan and
+      solves again (warm-started from its best try) while a stop decided then would still pass
+      the acceptance, up to ``deferrals`` times per event, instead of stopping at once.
     - ``stop_budget_factor``: after a stop to hover, the next re-plan gets this many times the
       budget and the deadline; ``retries_after_stop``, ``retry_interval``: re-plans tried while
       hovering (then the goal is reported unreachable).
@@ -84,6 +87,8 @@ class FlyConfig:
     reply_start: float = 0.1
     attempts: int = 3
     window_pad: float = 3.0
+    defer_stops: bool = True
+    deferrals: int = 8
     stop_budget_factor: int = 4
     retries_after_stop: int = 3
     retry_interval: float = 2.0
@@ -139,6 +144,8 @@ class FlyConfig:
             ("reply_start", real(self.reply_start) and 0 < self.reply_start <= 1, "a number in (0, 1]"),
             ("attempts", integer(self.attempts) and self.attempts <= 20, "an integer in [1, 20]"),
             ("window_pad", real(self.window_pad) and 0 <= self.window_pad <= 60, "a number in [0, 60] s"),
+            ("defer_stops", isinstance(self.defer_stops, bool), "True or False"),
+            ("deferrals", integer(self.deferrals) and self.deferrals <= 100, "an integer in [1, 100]"),
             ("stop_budget_factor", integer(self.stop_budget_factor) and self.stop_budget_factor <= 100,
              "an integer in [1, 100]"),
             ("retries_after_stop", integer(self.retries_after_stop) and self.retries_after_stop <= 100,

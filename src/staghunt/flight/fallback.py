@@ -87,6 +87,15 @@ class Fallback:
         _, plan, status = max(options, key=lambda o: o[0])  # no contact first, then the most clearance
         return plan, status
 
+    def stop_later(self, base: TeamTrajectory, t_soon: float, t_stop: float) -> bool:
+        """Whether the team may fly ``base`` on from ``t_soon`` and still stop in sync at
+        ``t_stop`` within ``max_acceleration``, both passing the acceptance: a stop that can
+        wait for the next re-plan."""
+        acc = self.acceptance
+        stop = stop_piece(base, t_stop, acc.scenario.vehicle)
+        return (acc.check(base, t_soon, max(t_soon, t_stop)).safe
+                and acc.check(Reference((stop,)), t_stop, stop.t1 + 1.0).safe)
+
     def stop_short(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Piece, bool]:
         """The stop before a plan from rest: at ``t_s`` within ``max_acceleration``, or, if that
         leaves a UAV within twice the hard clearance of something known (the encoding then has

@@ -31,7 +31,9 @@ class ReplanStatus(str, Enum):
     stop to hover, no plan yet; ``EMERGENCY_STOP`` the same at once, braking at two or three
     times the acceleration; ``SIDESTEP`` a hovering team moved as a whole out of a known
     motion's way; ``KEPT`` nothing: the current plan stays (a receding-horizon re-plan that
-    found nothing better, or no plan or a late one while the current one stays safe)."""
+    found nothing better, or no plan or a late one while the current one stays safe);
+    ``DEFERRED`` no plan yet from the moving state, but a stop decided at the next re-plan
+    still passes: the current plan stays and the station solves again at once."""
 
     REPLANNED = "replanned"
     STOP_REPLANNED = "stop, replanned"
@@ -39,6 +41,7 @@ class ReplanStatus(str, Enum):
     EMERGENCY_STOP = "emergency stop"
     SIDESTEP = "sidestep"
     KEPT = "kept"
+    DEFERRED = "deferred"
 
     @property
     def solved(self) -> bool:

@@ -48,7 +48,7 @@ from staghunt.flight.records import ReplanStatus, Solved
 from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
-from staghunt.trajectory.quintic import Reference, timed_path
+from staghunt.trajectory.quintic import Reference, timings
 from staghunt.trajectory.team import TeamTrajectory, end_time
 from staghunt.world.dynamic import Dynamics
 
@@ -119,19 +119,23 @@ class Replanner:
         self.learn_s = 1.0 / dyn.sensing.rate + (config.link or dyn.link).worst_delay
         self._certifier, self._workers = side_by_side(engine)
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
+        self.hint: np.ndarray | None = None  # (N, K, 3) the best try of a deferred re-plan
         if self._workers > 1:
             aside.start(PRELOAD)
 
     def solve(self, start: Start, t_soon: Callable[[], float], scale: int = 1,
               windows: list[tuple[str, float, float]] | None = None, deadline: Deadline | None = None,
-              horizon: float = 0.0, fallback: bool = True) -> Solved:
+              horizon: float = 0.0, fallback: bool = True, defer: float = 0.0) -> Solved:
         """Re-plan from ``start``; ``t_soon()``: the earliest a stop decided now can reach the UAVs.
         ``scale``: budget factor (after a stop); ``windows``: predicted conflicts to solve
         around; ``deadline``: wall-clock budget (``None``: none); ``horizon``: re-solve only
         that many seconds of the route ahead and keep the rest (0: to the goals);
         ``fallback``: if no plan passes, sidestep, keep the current plan when it stays clear
         over the conflict horizon, or stop; else (``False``) keep the current plan
-        (:attr:`ReplanStatus.KEPT`)."""
+        (:attr:`ReplanStatus.KEPT`); ``defer`` (s, 0: never): if no plan passes from the moving
+        state and a stop that much later still passes (:meth:`Fallback.stop_later`), keep the
+        current plan (:attr:`ReplanStatus.DEFERRED`): the next solve starts from this one's
+        best try (:attr:`hint`)."""
         cfg, sc = self.config, self.scenario
         deadline = deadline or Deadline()
         full = self._span(deadline) if deadline.end is not None else 0.0
@@ -143,6 +147,9 @@ class Replanner:
         t_s, base = start.t_s, start.base
         until = t_s + horizon if horizon > 0 and t_s + horizon < end_time(base) - 1.0 else None
         warm = warm_plan(sc, base, t_s, K, until)
+        if self.hint is not None and until is None and self.hint.shape == warm.shape:
+            warm = self.hint
+        self.hint = None
         at_rest = stopping(base, t_s)
         lead = None if at_rest else self._lead_in(start)
 
@@ -170,6 +177,11 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
+        if (first.plan is None and defer > 0 and fallback and not at_rest
+                and self.fallback.stop_later(base, t_soon(), t_s + defer)):
+            self.hint = first.out.plan if first.out is not None else None
+            return Solved(None, ReplanStatus.DEFERRED, spent, tries, problems=tuple(first.problems[:5]),
+                          windows=tuple(sorted(set(first.windows))))
         chosen, status = first, ReplanStatus.REPLANNED
         if first.plan is None and rest is not None:
             if rest.plan is not None:
@@ -290,26 +302,33 @@ class Replanner:
                ) -> tuple[Reference | None, list[str], list[tuple[str, float, float]] | None]:
         """``plan`` ``(N, K, 3)`` of ``sub`` timed from ``start`` (through the ``lead`` points,
         then ``tail`` ``(N, M, 3)`` absolute, the current plan beyond a receding horizon;
-        ``head``: a stop piece flown before, from whose rest the plan starts). Returns the new
-        plan if its timing meets the limits within ``max_stretch`` and the acceptance passes
-        it, else ``None``, with the problems and the conflicts with known motions found
-        (``None``: the timing failed)."""
+        ``head``: a stop piece flown before, from whose rest the plan starts), on the team's
+        common schedule and with each UAV at its own pace (:func:`~staghunt.trajectory.quintic.timings`).
+        Returns the new plan (the sooner timing that meets the limits within ``max_stretch``
+        and passes the acceptance), else ``None``, with the sooner one's problems and the
+        conflicts with known motions found (``None``: the timing failed)."""
         sc = self.scenario
         goals = to_absolute(sub.world.terrain, sub.goals()[:, None])
         front = start.pos[:, None] if lead is None else np.stack([start.pos, lead], axis=1)
         parts = [front, to_absolute(sub.world.terrain, plan), goals] + ([tail] if tail is not None else [])
         try:
-            piece = timed_path(np.concatenate(parts, axis=1), start.t_s, sc.vehicle, start.vel, start.acc,
-                               max_stretch=max_stretch)
+            pieces = timings(np.concatenate(parts, axis=1), start.t_s, sc.vehicle, start.vel, start.acc,
+                             max_stretch=max_stretch)
         except ValueError as exc:
             return None, [str(exc)], None
-        new = Reference((head, piece) if head is not None else (piece,))
         margins = self.acceptance.problem_margins(sub.costs.min_clearance)
-        verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
-        problems = verdict.problems([u.name for u in sc.team])
-        if not problems and head is None and self.config.straggler_check:
-            problems = self.acceptance.stragglers(new, start.base, start.t_s, self.learn_s)
-        return (None, problems, list(verdict.windows)) if problems else (new, [], list(verdict.windows))
+        first: tuple[list[str], list[tuple[str, float, float]]] | None = None
+        for piece in pieces:  # the sooner timing first; the other if its curve breaks a margin
+            new = Reference((head, piece) if head is not None else (piece,))
+            verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
+            problems = verdict.problems([u.name for u in sc.team])
+            if not problems and head is None and self.config.straggler_check:
+                problems = self.acceptance.stragglers(new, start.base, start.t_s, self.learn_s)
+            if not problems:
+                return new, [], list(verdict.windows)
+            first = first or (problems, list(verdict.windows))
+        assert first is not None
+        return None, *first
 
     def _lead_in(self, start: Start) -> np.ndarray | None:
         """``(N, 3)`` absolute lead-in points of a re-plan from a moving state: each UAV goes on

@@ -234,6 +234,39 @@ def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np
     return np.concatenate([[0.0], np.cumsum(dt)])
 
 
+def own_pace(dense: np.ndarray, limits: VehicleLimits, speed0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Knot times ``(M',)`` (from 0) and points ``(N, M', 3)`` of the team's dense paths ``dense``
+    ``(N, M, 3)``, each UAV at its own pace (``speed0`` ``(N,)``: its speed at the start).
+
+    :func:`knot_times` gives the whole team one schedule, each leg as long as its slowest UAV's
+    and each turn as slow as its sharpest: for a formation's parallel paths that is each UAV's
+    own, but paths re-planned from a moving state differ leg by leg, and the team's schedule
+    came to 1.5-5x the slowest UAV's own (measured: benchmarks/replan.py, scenario2 episode 0).
+    Here every UAV keeps its own schedule (:func:`knot_times` of its path alone) and waits out
+    its lead over the slowest along a smoothstep (its start and its arrival untouched: all
+    arrive together); the team's knots are the union of the UAVs' (closer than
+    :data:`MIN_KNOT_S` merged), every UAV's points at them interpolated along its own path,
+    so its own corners stay knots."""
+    N = dense.shape[0]
+    tau = np.stack([knot_times(dense[n:n + 1], limits, float(speed0[n])) for n in range(N)])  # (N, M)
+    end = tau[:, -1]
+    total = float(end.max())
+    x = tau / np.maximum(end, 1e-9)[:, None]
+    t = tau + (total - end)[:, None] * (x * x * (3.0 - 2.0 * x))  # (N, M) on the team's clock
+    grid = np.unique(t)
+    grid = grid[np.r_[True, np.diff(grid) > MIN_KNOT_S]]
+    grid[-1] = total
+    if grid.size < MIN_KNOTS:
+        grid = np.linspace(0.0, total, MIN_KNOTS)
+    pts = np.stack([np.stack([np.interp(grid, t[n], dense[n, :, c]) for c in range(3)], axis=-1)
+                    for n in range(N)])
+    return grid, pts
+
+
+MIN_KNOTS = 6
+"""Knots of :func:`own_pace`'s schedule, at least (a quintic with its end conditions needs them)."""
+MIN_KNOT_S = 0.3
+"""Seconds between two knots of :func:`own_pace`'s team schedule, at least (closer ones merged)."""
 DENSE_SPACING = 3.0
 """Longest sub-leg (m) of the dense paths a timed path interpolates."""
 DUPLICATE_M = 0.01
@@ -242,7 +275,35 @@ DUPLICATE_M = 0.01
 
 def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                v0: np.ndarray | None = None, a0: np.ndarray | None = None,
-               max_tries: int = 20, max_stretch: float = math.inf) -> Piece:
+               max_tries: int = 20, max_stretch: float = math.inf, own: bool = False) -> Piece:
+    """:func:`time_team` of the team's paths; ``own``: the sooner of :func:`timings` (the team's
+    common schedule and each UAV at its own pace)."""
+    if not own:
+        return time_team(points, t0, limits, v0, a0, max_tries, max_stretch)
+    return timings(points, t0, limits, v0, a0, max_tries, max_stretch)[0]
+
+
+def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray | None = None,
+            a0: np.ndarray | None = None, max_tries: int = 20, max_stretch: float = math.inf) -> list[Piece]:
+    """The team's paths timed on the team's common schedule and with each UAV at its own pace
+    (:func:`own_pace`; one UAV: the first only), those that meet the limits, soonest first
+    (``ValueError``: neither does)."""
+    found: list[Piece] = []
+    error: ValueError | None = None
+    for own in (False, True)[: 2 if np.asarray(points).shape[0] > 1 else 1]:
+        try:
+            found.append(time_team(points, t0, limits, v0, a0, max_tries, max_stretch, own))
+        except ValueError as exc:
+            error = error or exc
+    if not found:
+        assert error is not None
+        raise error
+    return sorted(found, key=lambda p: p.t1)
+
+
+def time_team(points: np.ndarray, t0: float, limits: VehicleLimits,
+              v0: np.ndarray | None = None, a0: np.ndarray | None = None,
+              max_tries: int = 20, max_stretch: float = math.inf, own: bool = False) -> Piece:
     """Time the team's paths ``points`` ``(N, M, 3)`` (absolute; ``points[:, 0]`` the state at
     ``t0``) starting with velocities ``v0`` and accelerations ``a0`` ``(N, 3)`` (default rest).
 
@@ -251,7 +312,8 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     breaks a limit, the knot intervals where it does (and their neighbours) are stretched.
     Raises ``ValueError`` if no schedule whose duration is at most ``max_stretch`` times the
     first one meets the limits within ``max_tries`` (the imposed start itself breaks
-    them: a UAV moving at speed cannot turn sharply at once, whatever the schedule after)."""
+    them: a UAV moving at speed cannot turn sharply at once, whatever the schedule after).
+    ``own``: every UAV at its own pace (:func:`own_pace`), not the team's common one."""
     p = np.asarray(points, dtype=float)
     N = p.shape[0]
     v0 = np.zeros((N, 3)) if v0 is None else np.asarray(v0, dtype=float)
@@ -261,7 +323,10 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     # makes the spline swing wildly. Nobody moving: the start and the goal, a hold.
     keep = merge_waypoints(p, DUPLICATE_M)
     dense, _ = split_legs(p[:, keep], DENSE_SPACING)
-    base = knot_times(dense, limits, float(np.linalg.norm(v0, axis=-1).max()))
+    if own and N > 1:
+        base, dense = own_pace(dense, limits, np.linalg.norm(v0, axis=-1))
+    else:
+        base = knot_times(dense, limits, float(np.linalg.norm(v0, axis=-1).max()))
     v_lim = MARGIN * limits.max_speed
     # The switch state's own acceleration cannot be undone by a slower schedule.
     a_lim = max(MARGIN * limits.max_acceleration, 1.02 * float(np.linalg.norm(a0, axis=-1).max()))
