@@ -93,6 +93,11 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
         **(popup_reach(r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
                        r.scenario.vehicle.max_acceleration,
                        1.0 / r.dynamics.sensing.rate + REFLEX_PERIOD + config.reflex_latency) if e["events"] else {}),
+        "popup_swerve_possible": popup_swerve(
+            r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
+            float(r.scenario.costs.min_clearance), r.scenario.vehicle.max_acceleration,
+            1.0 / r.dynamics.sensing.rate + config.deadline_for(r.scenario.n_uavs) + 2 * config.link.delay)
+        if e["events"] else None,
     }
 
 
@@ -132,6 +137,38 @@ def popup_reach(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, pop
     if best is None:
         return {"popup_flown_lead_s": None, "popup_flown_uav": None, "popup_within_reach": False}
     return {"popup_flown_lead_s": best[0], "popup_flown_uav": best[1], "popup_within_reach": best[2]}
+
+
+def popup_swerve(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
+                 radii: list[float], clearance: float, max_acceleration: float, react_s: float) -> bool | None:
+    """Whether every UAV closing in on the pop-up when it appeared (``times``, ``actual``,
+    ``velocity``, ``popup`` as :func:`popup_reach`) could have swerved round it at
+    ``max_acceleration``, flying on at its speed: the sideways offset its centre needs (the
+    pop-up's radius, its body and the required ``clearance``, less the centre's distance from
+    its line of flight) at most what it moves sideways at that acceleration in the time left
+    once the planner has answered (its lead less ``react_s``: a sensor period, the deadline and
+    the link's delay both ways), ``a T^2 / 2``. ``False``: only slowing down or stopping avoids
+    it, whatever the planner (a lower bound: the way back and the tracking allowance are left
+    out); ``None``: no UAV closes in."""
+    i = min(int(np.searchsorted(times, popup["time"] - 1e-9)), len(times) - 1)
+    c = np.array([popup["x"], popup["y"]])
+    verdicts = []
+    for n, r in enumerate(radii):
+        p, v = actual[n, i, :2] - c, velocity[n, i, :2]
+        reach = popup["radius"] + r
+        a, b, q = float(v @ v), float(p @ v), float(p @ p) - reach ** 2
+        if np.hypot(*p) < reach:
+            verdicts.append(False)
+            continue
+        disc = b * b - a * q
+        if a < 1e-12 or b >= 0 or disc < 0:
+            continue
+        lead = (-b - math.sqrt(disc)) / a
+        off = abs(float(p[0] * v[1] - p[1] * v[0])) / math.sqrt(a)  # the centre's distance from the line
+        need = reach + clearance - off
+        left = max(0.0, lead - react_s)
+        verdicts.append(need <= 0.5 * max_acceleration * left ** 2)
+    return all(verdicts) if verdicts else None
 
 
 def _meta(job: dict[str, Any]) -> dict[str, Any]:
@@ -202,6 +239,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "sensed_solved": sum(x["cause"] == "sensed" for x in solved),
         "sensed_certified": sum(x["certified"] for x in solved if x["cause"] == "sensed"),
         "episodes_with_emergency_stop": sum(any(x["status"] == "emergency stop" for x in r["replans"]) for r in ok),
+        "popups_no_swerve": sum(r.get("popup_swerve_possible") is False for r in ok),
+        "arrived_without_stop_swerve_possible": sum(r.get("popup_swerve_possible") is not False for r in clean),
+        "episodes_swerve_possible": sum(r.get("popup_swerve_possible") is not False for r in ok),
         "deferred_replans": sum(x["status"] == "deferred" for x in events),
         "episodes_deferred": sum(any(x["status"] == "deferred" for x in r["replans"]) for r in ok),
         "episodes_deferred_without_stop": sum(any(x["status"] == "deferred" for x in r["replans"]) and r["stops"] == 0
@@ -232,7 +272,9 @@ def table(summary: dict[str, dict[str, Any]], title: str = "set") -> str:
             f"| {k}: {s['episodes']}" + (f" ({s['refused']} refused)" if s["refused"] else "") + " | "
             f"{s['arrived']} / {s['stopped']} / {s['breach']} / {s['unsafe']} | {s['contacts']} | "
             f"{s['clearance_breaches']} / {s['separation_breaches']} / {s['ground_breaches']} / {s['ceiling_breaches']} | "
-            f"{s['arrived_without_stop']}/{n} ({100 * s['arrived_without_stop'] / max(n, 1):.0f} %) | "
+            f"{s['arrived_without_stop']}/{n} ({100 * s['arrived_without_stop'] / max(n, 1):.0f} %)"
+            + (f"; of those a swerve could avoid, {s['arrived_without_stop_swerve_possible']}/{s['episodes_swerve_possible']}"
+               if s.get("episodes_swerve_possible") is not None else "") + " | "
             f"{s['episodes_with_stop']} / {s['episodes_with_hold']} | "
             + (f"{s['extra_time_s_median']:.1f} [{ex[0]:.1f}, {ex[1]:.1f}]" if ex else na) + " | "
             f"{s['event_replans']} | "

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from replan import popup_reach  # noqa: E402
+from replan import popup_reach, popup_swerve  # noqa: E402
 
 NOTICE = 0.2  # a sensor period, a reflex check and the reflex latency (s)
 
@@ -44,3 +44,16 @@ def test_popup_reach_none_when_no_uav_closes_in() -> None:
     out = popup_reach(times, actual, velocity, {"time": 1.0, "x": 8.0, "y": 0.0, "radius": 2.0}, [1.0, 1.0], 3.0,
                       NOTICE)
     assert out == {"popup_flown_lead_s": None, "popup_flown_uav": None, "popup_within_reach": False}
+
+
+@pytest.mark.parametrize(("x", "y", "possible"), [(12.0, 0.0, True), (8.0, 0.0, False), (8.0, 2.5, True),
+                                                  (8.0, 4.0, None)])
+def test_popup_swerve_is_the_sideways_reach_in_the_time_left(x: float, y: float, possible: bool | None) -> None:
+    """UAV1 at 4 m/s along y = 0 meets a pop-up (radius 2 m, body 1 m, clearance 1 m) appearing
+    at t = 1 s with it at x = 0; the planner answers 0.5 s later, then it can move a T^2 / 2 m
+    sideways at 3 m/s^2 (UAV2 flies away). Ahead at 12 m: contact in 2.25 s, 1.5 * 1.75^2 =
+    4.59 m >= the 4 m it needs. At 8 m: 1.25 s, 0.84 m < 4 m. At 8 m, 2.5 m off its line: contact
+    in 1.585 s, 1.5 * 1.085^2 = 1.77 m >= 4 - 2.5 m. 4 m off its line: it does not close in."""
+    times, actual, velocity = _flight([-4.0, 0.0], [4.0, -4.0])
+    popup = {"time": 1.0, "x": x, "y": y, "radius": 2.0}
+    assert popup_swerve(times, actual, velocity, popup, [1.0, 1.0], 1.0, 3.0, 0.5) is possible

@@ -135,7 +135,7 @@ class Replanner:
         (:attr:`ReplanStatus.KEPT`); ``defer`` (s, 0: never): if no plan passes from the moving
         state and a stop that much later still passes (:meth:`Fallback.stop_later`), keep the
         current plan (:attr:`ReplanStatus.DEFERRED`): the next solve starts from this one's
-        best try (:attr:`hint`)."""
+        best try (:attr:`hint`); no plan from rest is solved then."""
         cfg, sc = self.config, self.scenario
         deadline = deadline or Deadline()
         full = self._span(deadline) if deadline.end is not None else 0.0
@@ -161,7 +161,11 @@ class Replanner:
         rest_args = (base, t_soon(), t_s, windows, settings, rest_rng,
                      None if deadline.end is None else deadline.end - (1 - REST_SHARE) * full)
         second: tuple[_Attempt | None, Any] | None = None
-        if at_rest or not fallback:
+        # a stop that can wait for the next re-plan: no plan from rest now, the moving solve has
+        # every core and every attempt the deadline allows
+        can_defer = (defer > 0 and fallback and not at_rest
+                     and self.fallback.stop_later(base, t_soon(), t_s + defer))
+        if at_rest or not fallback or can_defer:
             first = moving(self.engine)
         elif self._workers > 1:
             first, second = self._side_by_side(moving, rest_args)
@@ -177,8 +181,7 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
-        if (first.plan is None and defer > 0 and fallback and not at_rest
-                and self.fallback.stop_later(base, t_soon(), t_s + defer)):
+        if first.plan is None and can_defer:
             self.hint = first.out.plan if first.out is not None else None
             return Solved(None, ReplanStatus.DEFERRED, spent, tries, problems=tuple(first.problems[:5]),
                           windows=tuple(sorted(set(first.windows))))
