@@ -102,3 +102,19 @@ def test_a_plan_that_a_certified_candidate_dominates_is_not_certified():
         elif c["feasible"]:
             assert c["certificate"] is not None
     assert skipped >= 1, "the case should have a dominated candidate (seed 4: the independent and random starts)"
+
+
+def test_the_plan_that_failed_its_certificate_is_repaired_into_an_equilibrium():
+    """Scenario 1 at 200 x 100, four starts, seed 16: the rigid start's rounds end on a plan whose
+    certificate fails; with its better replies adopted and a team refine it passes, and is a
+    candidate of its own ("rigid (repaired)")."""
+    scenario = load_scenario("scenario1")
+    settings = scenario.solver.with_(particles=200, iterations=100, starts=4)
+    r = plan(scenario, "game", 16, settings, engine="numba", certify=CertifyOptions(particles=60, iterations=30))
+    cands = {c["start"]: c for c in r.details["candidates"]}
+    assert cands["rigid"]["certificate"]["status"] == "deviation"
+    repaired = cands["rigid (repaired)"]
+    assert repaired["feasible"] and repaired["certificate"]["status"] == "equilibrium"
+    assert repaired["certificate"]["max_relative_gap"] <= 0.01
+    # It is one of the distinct equilibria the selection weighed.
+    assert any(np.allclose(e["J"], repaired["J"], rtol=0.01) for e in r.details["equilibria"])

@@ -6,8 +6,9 @@ had it passed its certificate, repaired from what its certificate found.
    (:func:`~staghunt.solvers.team_search.team_refine`: slide, polish and block shifts, no UAV
    worse off); the result is one more candidate, certified (it dominates the one it came from).
 2. **Repair.** The candidate the selection would prefer to the one it has, the feasible plan
-   with the least ``sum_n ln J_n`` below the selected one's that has failed its certificate
-   (often the polished plan of step 1: lower on the family, but one UAV now has a better reply),
+   with the least ``sum_n ln J_n`` below the selected one's (any, if no candidate is certified)
+   that has failed its certificate (often the polished plan of step 1: lower on the family, but
+   one UAV now has a better reply),
    is repaired: the better replies its certificate found are adopted in turn (largest gap first,
    each kept if it still gains more than ``epsilon`` with those already kept and the plan stays
    feasible), the team refine follows, and the result is certified again; up to
@@ -78,10 +79,9 @@ def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[
     if polished is not chosen.plan:
         add(chosen.start + " (polished)", polished, certificate(polished), used)
     chosen = candidates[select(candidates, epsilon).chosen]
-    if not chosen.certified:
-        return spent
+    bound = _logs(chosen.J) if chosen.certified else np.inf  # none certified: any failed one
     below = [c for c in candidates if c.violation == 0 and c.certificate is not None
-             and not c.certified and _logs(c.J) < _logs(chosen.J)]
+             and not c.certified and _logs(c.J) < bound]
     if not below:
         return spent
     target = min(below, key=lambda c: _logs(c.J))
