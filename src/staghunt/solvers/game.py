@@ -88,10 +88,11 @@ MIN_REPLY_ITERATIONS = 5
 POLISH_SHARE = 0.25
 """Share of a reply's budget for the local polish of the swarm's best (:func:`polish`)."""
 RIGID_MIN_ITERATIONS = 100
-"""Least iterations of the rigid seed of a search with several starts (at most a third of the
-run's): the formation route it finds is where the selected equilibrium usually lies, and with
-:data:`SEED_SHARE` alone a small run's seed (30 iterations at 500 x 300) ends on the right
-corridor but far above its best route, or on a worse corridor."""
+"""Least iterations of the rigid seed of a search with several starts, in runs of at least three
+times as many iterations (shorter runs, measured nowhere, keep :data:`SEED_SHARE`): the formation
+route it finds is where the selected equilibrium usually lies, and with :data:`SEED_SHARE` alone
+a small run's seed (30 iterations at 500 x 300) ends on the right corridor but far above its
+best route, or on a worse corridor."""
 TEAM_POLISH_SHARE = 0.02
 """Most of the budget one :func:`team_polish` (or :func:`team_slide`) may spend (it usually needs far less)."""
 
@@ -315,8 +316,9 @@ def solve_game(run: MethodRun) -> SolverOutput:
     history = np.full((I + 1, N), np.nan)
     unit = P * N  # evaluations per row of history
     rigid_iters, extra = max(0, int(SEED_SHARE * (I + 1)) - 1), 0
-    if S > 1:  # the rigid seed of several starts: at least RIGID_MIN_ITERATIONS (at most a third of the run's),
-        # the iterations beyond its share added to the first start's (so that its rounds keep theirs)
+    if S > 1 and (I + 1) // 3 >= RIGID_MIN_ITERATIONS:  # the rigid seed of several starts in a run of
+        # 300 iterations or more: at least RIGID_MIN_ITERATIONS (less one if that is more than a third
+        # of the run's), the iterations beyond its share added to the first start's (its rounds keep theirs)
         extra = max(0, min(RIGID_MIN_ITERATIONS, (I + 1) // 3 - 1) - rigid_iters)
         rigid_iters, extra = rigid_iters + extra, extra * unit
     seed_settings = settings.with_(iterations=max(0, int(SEED_SHARE * (I + 1) / S) - 1))
