@@ -1,8 +1,10 @@
 """Equilibrium selection (issue 18) at the paper's budget: the equilibria the multi-start ``game``
 finds, whether a payoff-dominant one exists, and what the selection costs, in one run.
 
-For each scenario (default: scenario1, scenario2) and seed (default 1-10), with the compiled
-engine on 2 threads and the default certificate (400 x 200 per UAV, epsilon 1 %):
+For each budget (``--budget``, default both: ``paper``, the scenario's own particles x
+iterations, and ``500x300``), scenario (default: scenario1, scenario2) and seed (default 1-20),
+with the compiled engine (``--threads``, default 2) and the default certificate (400 x 200 per
+UAV, epsilon 1 %):
 
 - ``game`` with one start (the single-start method of staghunt 0.2, the baseline) and with
   ``--starts`` starts (default: the scenario's); the two runs of a seed alternate, so both see the
@@ -16,10 +18,11 @@ engine on 2 threads and the default certificate (400 x 200 per UAV, epsilon 1 %)
   :func:`staghunt.solvers.selection.select`), which of them are dominated, and whether one
   dominates all the others.
 
-    python benchmarks/equilibria.py                 # ~5-10 min on a 2-core machine
-    python benchmarks/equilibria.py --seeds 1-2 --no-write
+    python benchmarks/equilibria.py                 # both budgets; ~15 min on a quiet 2-core machine
+    python benchmarks/equilibria.py --budget 500x300 --seeds 1-2 --no-write
 
-Writes ``benchmarks/results/equilibria.md``, ``equilibria.json`` and ``equilibria.png``.
+Writes ``benchmarks/results/equilibria.md``, ``.json`` and ``.png`` (the paper's budget) and
+``equilibria_500x300.*`` (or ``equilibria_PxI.*``), one set per budget.
 """
 
 from __future__ import annotations
@@ -47,8 +50,32 @@ RESULTS = Path(__file__).parent / "results"
 EPSILON = CertifyOptions().epsilon
 
 
-def one_run(scenario, seed: int, starts: int, engine) -> dict:
+def parse_budget(text: str) -> tuple[int, int] | None:
+    """``"paper"`` -> ``None`` (the scenario's own particles x iterations), ``"500x300"`` -> ``(500, 300)``."""
+    if text == "paper":
+        return None
+    try:
+        p, i = (int(x) for x in text.lower().split("x"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: a budget is 'paper' or PARTICLESxITERATIONS, e.g. 500x300") from None
+    if p < 1 or i < 1:
+        raise argparse.ArgumentTypeError(f"{text!r}: particles and iterations must be at least 1")
+    return p, i
+
+
+def budget_name(budget: tuple[int, int] | None) -> str:
+    return "paper" if budget is None else f"{budget[0]}x{budget[1]}"
+
+
+def results_stem(budget: tuple[int, int] | None) -> str:
+    """``equilibria`` (the paper's budget) or ``equilibria_500x300``."""
+    return "equilibria" if budget is None else f"equilibria_{budget_name(budget)}"
+
+
+def one_run(scenario, seed: int, starts: int, engine, budget: tuple[int, int] | None = None) -> dict:
     settings = scenario.solver.with_(starts=starts)
+    if budget is not None:
+        settings = settings.with_(particles=budget[0], iterations=budget[1])
     t0 = time.perf_counter()
     r = staghunt.plan(scenario, "game", seed, settings, engine=engine, certify=CertifyOptions())
     total = time.perf_counter() - t0 - r.compile_time_s
@@ -112,9 +139,11 @@ def scenario_summary(runs: list[dict], starts: int) -> dict:
 
 def markdown(report: dict) -> str:
     s = report["starts"]
-    lines = [f"# Equilibrium selection at the paper's budget (`game`, 1 start vs {s} starts)", "",
+    b = report["budget"]
+    at = "at the paper's budget" if b["name"] == "paper" else f"at {b['particles']} x {b['iterations']}"
+    lines = [f"# Equilibrium selection {at} (`game`, 1 start vs {s} starts)", "",
              f"Machine: {report['machine']}; load before/after: {report['load_before']} / {report['load_after']}. "
-             "Compiled engine, 2 threads, certificate 400 x 200 per UAV, epsilon 1 %.", ""]
+             f"Compiled engine, {report.get('threads', 2)} thread(s), certificate 400 x 200 per UAV, epsilon 1 %.", ""]
     for name, summ in report["scenarios"].items():
         lines += [f"## {name}", "", "| starts | certified | selected dominated (strict) | "
                   "dominated beyond 1 % | median time (s) |", "|---|---|---|---|---|"]
@@ -136,27 +165,39 @@ def markdown(report: dict) -> str:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--scenarios", default="scenario1,scenario2")
-    ap.add_argument("--seeds", default="1-10")
+    ap.add_argument("--seeds", default="1-20")
     ap.add_argument("--starts", type=int, default=None, help="default: the scenario's")
+    ap.add_argument("--budget", type=parse_budget, action="append", default=None,
+                    help="'paper' (the scenario's own particles x iterations) or PxI, e.g. 500x300; "
+                    "repeat for several (default: paper and 500x300)")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--no-write", action="store_true")
     args = ap.parse_args()
     engine = get_engine("numba", threads=args.threads)
     engine.prepare()
+    for budget in args.budget or [None, (500, 300)]:
+        run_budget(args, budget, engine)
+
+
+def run_budget(args, budget: tuple[int, int] | None, engine) -> None:
+    """Every scenario and seed at one budget; writes ``results_stem(budget)``.json/.md/.png."""
     started = provenance.start()
     report: dict = {"machine": f"{platform.machine()}, {os.cpu_count()} cores", "load_before": os.getloadavg()[0],
-                    "scenarios": {}, "runs": {}}
+                    "threads": args.threads, "budget": {"name": budget_name(budget)}, "scenarios": {}, "runs": {}}
     for name in args.scenarios.split(","):
         scenario = staghunt.load_scenario(name)
         starts = args.starts or scenario.solver.starts
         report["starts"] = starts
+        p, i = budget or (scenario.solver.particles, scenario.solver.iterations)
+        report["budget"].update(particles=p, iterations=i)
         runs = []
         for seed in parse_seeds(args.seeds):
             for cfg in ((1, starts) if seed % 2 else (starts, 1)):
-                r = one_run(scenario, seed, cfg, engine)
+                r = one_run(scenario, seed, cfg, engine, budget)
                 runs.append(r)
-                print(f"{name} seed {seed} starts {cfg}: {r['time_s']:.2f} s, J {np.round(r['J'])}, "
-                      f"{r['status']}, {r['selection'] and r['selection']['rule'][:40]}", flush=True)
+                print(f"[{budget_name(budget)}] {name} seed {seed} starts {cfg}: {r['time_s']:.2f} s, "
+                      f"J {np.round(r['J'])}, {r['status']}, {r['selection'] and r['selection']['selected_start']}",
+                      flush=True)
         report["runs"][name] = runs
         report["scenarios"][name] = scenario_summary(runs, starts)
     report["load_after"] = os.getloadavg()[0]
@@ -164,15 +205,15 @@ def main() -> None:
     print(text)
     if not args.no_write:
         RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "equilibria.json").write_text(json.dumps(provenance.stamped(started, report), indent=1))
-        (RESULTS / "equilibria.md").write_text(text)
+        stem = results_stem(budget)
+        (RESULTS / f"{stem}.json").write_text(json.dumps(provenance.stamped(started, report), indent=1))
+        (RESULTS / f"{stem}.md").write_text(text)
         panels = [EquilibriaPanel(name, np.array([d["J"] for d in summ["distinct"]]),
                                   np.array([d["dominated"] for d in summ["distinct"]]),
                                   np.array([r["J"] for r in report["runs"][name] if r["starts"] == report["starts"]]),
                                   tuple(f"UAV{n + 1}" for n in range(len(report["runs"][name][0]["J"]))))
                   for name, summ in report["scenarios"].items()]
-        equilibria_figure(panels).savefig(RESULTS / "equilibria.png", dpi=110)
-
+        equilibria_figure(panels).savefig(RESULTS / f"{stem}.png", dpi=110)
 
 if __name__ == "__main__":
     main()

@@ -45,6 +45,7 @@ import numpy as np
 from staghunt.costs import CostEngine, CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
+from staghunt.solvers.finish import finish
 from staghunt.solvers.independent import solo_model
 from staghunt.solvers.local import (  # noqa: F401  (formation_target, polish: re-exported)
     ACCEPT_TOL, LocalSearch, formation_target, local_pass, polish,
@@ -86,6 +87,12 @@ LOCAL_CHECK_EVALUATIONS = int(CERTIFICATE_LOCAL_SHARE * VERIFY_EVALUATIONS)
 MIN_REPLY_ITERATIONS = 5
 POLISH_SHARE = 0.25
 """Share of a reply's budget for the local polish of the swarm's best (:func:`polish`)."""
+RIGID_MIN_ITERATIONS = 100
+"""Least iterations of the rigid seed of a search with several starts, in runs of at least three
+times as many iterations (shorter runs, measured nowhere, keep :data:`SEED_SHARE`): the formation
+route it finds is where the selected equilibrium usually lies, and with :data:`SEED_SHARE` alone
+a small run's seed (30 iterations at 500 x 300) ends on the right corridor but far above its
+best route, or on a worse corridor."""
 TEAM_POLISH_SHARE = 0.02
 """Most of the budget one :func:`team_polish` (or :func:`team_slide`) may spend (it usually needs far less)."""
 
@@ -290,14 +297,17 @@ def solve_game(run: MethodRun) -> SolverOutput:
     (:mod:`staghunt.solvers.selection`).
 
     With one start this is the single-start method (the rigid seed, then rounds until
-    convergence or the budget). With several (docs/model.md section 6.1), each start is first
-    team-slid and team-polished (:func:`team_slide`, :func:`team_polish`: no UAV worse off) and,
-    if already certified, a candidate of its own; its
-    rounds then stop as soon as their plan is a certified equilibrium (``run.certify``; without
-    certificates, on the rounds' own rule), so the budget a start does not need goes to the
-    next ones; the selected plan is team-slid and team-polished at the end, and the selection
-    made again. What a search with several starts leaves unspent is left (``unspent_evaluations``): the time
-    saved is the point."""
+    convergence or the budget). With several (docs/model.md section 6.1), the rigid seed runs
+    at least :data:`RIGID_MIN_ITERATIONS`; each start is first team-refined
+    (:func:`team_refine`: slide, polish, block shifts; no UAV worse off) and, if already
+    certified, a candidate of its own; its rounds then stop as soon as their plan is a certified
+    equilibrium (``run.certify``; without certificates, on the rounds' own rule), so the budget
+    a start does not need goes to the next ones. A plan that a certified candidate dominates is
+    not certified (it can be neither selected nor needed to judge payoff dominance). At the end
+    (:func:`~staghunt.solvers.finish.finish`) the selected plan is team-refined and the best
+    plan that failed its certificate repaired from it; the selection is made again. What a
+    search with several starts leaves unspent is left (``unspent_evaluations``): the time saved
+    is the point."""
     scenario, settings, rng, progress = run.scenario, run.settings, run.rng, run.progress
     runner, engine = run.runner, run.engine
     model = CostModel.from_scenario(scenario)
@@ -305,7 +315,12 @@ def solve_game(run: MethodRun) -> SolverOutput:
     budget = P * (I + 1) * N
     history = np.full((I + 1, N), np.nan)
     unit = P * N  # evaluations per row of history
-    rigid_iters = max(0, int(SEED_SHARE * (I + 1)) - 1)
+    rigid_iters, extra = max(0, int(SEED_SHARE * (I + 1)) - 1), 0
+    if S > 1 and (I + 1) // 3 >= RIGID_MIN_ITERATIONS:  # the rigid seed of several starts in a run of
+        # 300 iterations or more: at least RIGID_MIN_ITERATIONS (less one if that is more than a third
+        # of the run's), the iterations beyond its share added to the first start's (its rounds keep theirs)
+        extra = max(0, min(RIGID_MIN_ITERATIONS, (I + 1) // 3 - 1) - rigid_iters)
+        rigid_iters, extra = rigid_iters + extra, extra * unit
     seed_settings = settings.with_(iterations=max(0, int(SEED_SHARE * (I + 1) / S) - 1))
     state = {"row": 0}
 
@@ -319,9 +334,16 @@ def solve_game(run: MethodRun) -> SolverOutput:
     def certificate(plan: np.ndarray, searched: tuple[LocalSearch, ...] = ()) -> Certificate | None:
         return run.certify(plan, searched=searched) if run.certify is not None else None
 
+    def needed(plan: np.ndarray) -> bool:
+        """Whether a certificate of the feasible ``plan`` can matter: not if a certified candidate
+        Pareto-dominates it (then it is neither selected nor needed to judge payoff dominance)."""
+        J = evaluate(model, plan[None]).total[0]
+        return not any(c.certified and bool(np.all(c.J <= J)) and bool(np.any(c.J < J)) for c in candidates)
+
     # A single start keeps its stopping rule (the run's); several stop at their first certified plan.
     explore_stop = run.certified if S == 1 else (
-        (lambda wp, searched=(): certificate(wp, searched).is_equilibrium) if run.certify is not None else None)
+        (lambda wp, searched=(): needed(wp) and certificate(wp, searched).is_equilibrium)
+        if run.certify is not None else None)
     # stop="certified" (run.certified): the run itself ends at its first certified equilibrium,
     # with the starts after it left unsearched.
     first_certified = run.certified is not None and S > 1
@@ -330,7 +352,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
     starts: list[dict[str, Any]] = []
     for s in range(S):
         kind = _start_kind(s)
-        cap = spent + (budget - spent) // (S - s)
+        cap = spent + (budget - spent) // (S - s) + (extra if s == 0 else 0)
         before = spent
         seed_progress = _Rows(progress, I) if progress is not None and s == 0 else None
         best = candidates[select(candidates, EPSILON).chosen].plan if candidates else None
@@ -352,7 +374,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
             # The start itself may already be an equilibrium (the rigid plan often is): a candidate
             # of its own, whatever equilibrium the rounds then reach from it.
             c = evaluate(model, start[None])
-            cert = certificate(start) if c.total_violation[0] == 0 else None
+            cert = certificate(start) if c.total_violation[0] == 0 and needed(start) else None
             if cert is not None and cert.is_equilibrium:
                 candidates.append(Candidate(kind + " (start)", start, c.total[0], 0.0, cert, spent - before))
                 if first_certified:
@@ -363,7 +385,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
                                    repair=kind != "rigid", certified=explore_stop, workers=run.workers)
         spent = out.evaluations
         c = evaluate(model, out.plan[None])
-        cert = certificate(out.plan) if c.total_violation[0] == 0 else None
+        cert = certificate(out.plan) if c.total_violation[0] == 0 and needed(out.plan) else None
         candidates.append(Candidate(kind, out.plan, c.total[0], float(c.total_violation[0]), cert, spent - before))
         starts.append({"start": kind, "rounds": out.rounds, "accepted_replies": out.accepted,
                        "converged": out.converged, "evaluations": int(spent - before)})
@@ -373,18 +395,12 @@ def solve_game(run: MethodRun) -> SolverOutput:
     chosen = candidates[select(candidates, EPSILON).chosen]
     stopped = first_certified and chosen.certificate is not None and chosen.certificate.is_equilibrium
     if S > 1 and not stopped:
-        # Finish the selected plan with a team slide and a team polish (no UAV worse off); if the
-        # result is still a certified equilibrium, it is one more candidate (it then dominates
-        # the other).
-        before = spent
-        polished, used = team_refine(model, chosen.plan, int(TEAM_POLISH_SHARE * budget), budget - spent, engine)
+        # The selected plan down to the lower edge of its family, and the plan that would beat
+        # it repaired from its certificate (solvers/finish.py): more candidates.
+        used = finish(model, candidates, certificate, engine, int(TEAM_POLISH_SHARE * budget), budget - spent, EPSILON)
         spent += used
-        if polished is not chosen.plan:
-            c = evaluate(model, polished[None])
-            candidates.append(Candidate(chosen.start + " (polished)", polished, c.total[0],
-                                        float(c.total_violation[0]), certificate(polished), spent - before))
         starts.append({"start": "polish", "rounds": [], "accepted_replies": 0, "converged": True,
-                       "evaluations": int(spent - before)})
+                       "evaluations": int(used)})
     selection = select(candidates, EPSILON)
     plan, J = candidates[selection.chosen].plan, candidates[selection.chosen].J
     row = state["row"]

@@ -1,0 +1,103 @@
+"""The end of ``game``'s search with several starts (docs/model.md section 6.1, step 4): the
+selected plan taken down to the lower edge of its family, and the one plan that would beat it,
+had it passed its certificate, repaired from what its certificate found.
+
+1. **Polish.** The selected equilibrium gets a team refine
+   (:func:`~staghunt.solvers.team_search.team_refine`: slide, polish and block shifts, no UAV
+   worse off); the result is one more candidate, certified (it dominates the one it came from).
+2. **Repair.** The candidate the selection would prefer to the one it has, the feasible plan
+   with the least ``sum_n ln J_n`` below the selected one's (any, if no candidate is certified)
+   that has failed its certificate (often the polished plan of step 1: lower on the family, but
+   one UAV now has a better reply),
+   is repaired: the better replies its certificate found are adopted in turn (largest gap first,
+   each kept if it still gains more than ``epsilon`` with those already kept and the plan stays
+   feasible), the team refine follows, and the result is certified again; up to
+   :data:`REPAIR_ROUNDS` times, while it fails. Each certified result is one more candidate.
+
+Every step asks only certificates; the selection among the candidates is
+:func:`staghunt.solvers.selection.select`'s.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from staghunt.costs import CostEngine, CostModel
+from staghunt.solvers.response import Certificate
+from staghunt.solvers.selection import Candidate, select
+from staghunt.solvers.team_search import team_refine
+
+REPAIR_ROUNDS = 2
+"""Most certificates of the repair (each after adopting the last one's better replies)."""
+
+
+def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate,
+                  engine: CostEngine) -> tuple[np.ndarray | None, int]:
+    """``plan`` ``(N, K, 3)`` with the better replies of its failed ``cert`` adopted in turn
+    (largest relative gap first), each kept if the plan stays feasible and the UAV gains more than
+    the certificate's ``epsilon`` with the replies already kept; ``None`` if none is kept. Also
+    the path evaluations spent (``N`` per plan judged)."""
+    N = plan.shape[0]
+    team, J = plan.copy(), engine.evaluate(model, plan[None]).total[0]
+    spent, taken = N, 0
+    for n in sorted(range(N), key=lambda m: -cert.uavs[m].relative):
+        u = cert.uavs[n]
+        if u.relative <= cert.epsilon or u.deviation is None:
+            continue
+        candidate = team.copy()
+        candidate[n] = u.deviation
+        c = engine.evaluate(model, candidate[None])
+        spent += N
+        if c.total_violation[0] == 0 and c.total[0][n] < (1.0 - cert.epsilon) * J[n]:
+            team, J, taken = candidate, c.total[0], taken + 1
+    return (team if taken else None), spent
+
+
+def _logs(J: np.ndarray) -> float:
+    return float(np.sum(np.log(np.maximum(J, 1e-300))))
+
+
+def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[[np.ndarray], Certificate | None],
+           engine: CostEngine, each: int, left: int, epsilon: float) -> int:
+    """Steps 1-2 of the module docstring on ``candidates`` (appended to in place); ``certificate``
+    certifies a plan (``None``: no certificates, then only step 1, uncertified); the team refines
+    spend at most ``each`` per search and everything at most ``left`` path evaluations. Returns
+    the evaluations spent."""
+    spent = 0
+    chosen = candidates[select(candidates, epsilon).chosen]
+
+    def add(name: str, plan: np.ndarray, cert: Certificate | None, used: int) -> Candidate:
+        c = engine.evaluate(model, plan[None])
+        candidate = Candidate(name, plan, c.total[0], float(c.total_violation[0]), cert, used)
+        candidates.append(candidate)
+        return candidate
+
+    polished, used = team_refine(model, chosen.plan, each, left, engine)
+    spent += used
+    if polished is not chosen.plan:
+        add(chosen.start + " (polished)", polished, certificate(polished), used)
+    chosen = candidates[select(candidates, epsilon).chosen]
+    bound = _logs(chosen.J) if chosen.certified else np.inf  # none certified: any failed one
+    below = [c for c in candidates if c.violation == 0 and c.certificate is not None
+             and not c.certified and _logs(c.J) < bound]
+    if not below:
+        return spent
+    target = min(below, key=lambda c: _logs(c.J))
+    plan, cert, name = target.plan, target.certificate, target.start + " (repaired)"
+    for _ in range(REPAIR_ROUNDS):
+        assert cert is not None
+        adopted, used = adopt_replies(model, plan, cert, engine)
+        spent += used
+        if adopted is None or spent >= left:
+            break
+        plan, used = team_refine(model, adopted, each, left - spent, engine)
+        spent += used
+        cert = certificate(plan)
+        if cert is None:
+            break
+        if cert.is_equilibrium:
+            add(name, plan, cert, spent)
+            break
+    return spent
