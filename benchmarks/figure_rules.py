@@ -77,10 +77,8 @@ ALLOW: dict[str, list[str]] = {
         "effect 0.3 s after its trigger",  # the old loop's fixed latency budget (a setting)
         "link 100 ms delay, 30 ms jitter, 1 % loss",  # the benchmark's link (its settings)
         "300 ms delay, 30 ms jitter, 5 % loss",       # the worse link's settings
-        "(the old loop: 0.3 s after the trigger",     # the old loop's fixed latency (a setting)
         "1 s for 8*",               # issue 38's latency target for 8 UAVs
         "0.2 s for 3 UAVs, too short",  # the default deadline (a setting)
-        "(the old loop, with 0.3 s:",   # the old loop's fixed latency (a setting)
         "radius 2.5 m",             # replan.py's episode generator
         "2-5 s later",
         "2-5 s ahead",
