@@ -117,9 +117,10 @@ def test_bad_input_is_refused():
 def test_each_uav_at_its_own_pace_when_the_teams_legs_differ():
     """Re-planned paths differ leg by leg: here UAV1 flies 30 m then 2 m, UAV2 2 m then 30 m.
     The team's common schedule gives every leg its longest UAV leg (30 m twice, and both turns
-    as slow as the sharper); each UAV at its own pace (``own=True``) arrives when the slower
+    as slow as the sharper); each UAV at its own pace (``own=True``, the sooner of
+    :func:`timings`) arrives when the slower
     alone would, together, within the limits, from the start to the goals."""
-    from staghunt.trajectory.quintic import knot_times, split_legs as dense_legs, timed_path, DENSE_SPACING
+    from staghunt.trajectory.quintic import DENSE_SPACING, knot_times, split_legs as dense_legs, timed_path, timings
 
     lim = VehicleLimits()
     a = np.array([[0.0, 0.0, 10.0], [30.0, 0.0, 10.0], [30.0, 2.0, 10.0]])
@@ -127,6 +128,7 @@ def test_each_uav_at_its_own_pace_when_the_teams_legs_differ():
     pts = np.stack([a, b])
     team = timed_path(pts, 0.0, lim)
     own = timed_path(pts, 0.0, lim, own=True)
+    assert timings(pts, 0.0, lim)[0].t1 == pytest.approx(own.t1)  # the sooner of the two
     alone = [timed_path(pts[n:n + 1], 0.0, lim).t1 for n in range(2)]
     assert own.t1 < 0.8 * team.t1  # measured 12.8 s against 17.3 s
     assert max(alone) < own.t1 <= max(alone) * 1.2  # 11.1 s alone (the knots of both UAVs slow each a little)

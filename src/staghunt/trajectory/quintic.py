@@ -241,7 +241,8 @@ def own_pace(dense: np.ndarray, limits: VehicleLimits, speed0: np.ndarray) -> tu
     :func:`knot_times` gives the whole team one schedule, each leg as long as its slowest UAV's
     and each turn as slow as its sharpest: for a formation's parallel paths that is each UAV's
     own, but paths re-planned from a moving state differ leg by leg, and the team's schedule
-    came to 1.5-5x the slowest UAV's own (measured: benchmarks/replan.py, scenario2 episode 0).
+    came to up to 4.7x the slowest UAV's own (benchmarks/JOURNAL.md, "Closed loop: why stops and
+    extra time stayed").
     Here every UAV keeps its own schedule (:func:`knot_times` of its path alone) and waits out
     its lead over the slowest along a smoothstep (its start and its arrival untouched: all
     arrive together); the team's knots are the union of the UAVs' (closer than
@@ -276,34 +277,6 @@ DUPLICATE_M = 0.01
 def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                v0: np.ndarray | None = None, a0: np.ndarray | None = None,
                max_tries: int = 20, max_stretch: float = math.inf, own: bool = False) -> Piece:
-    """:func:`time_team` of the team's paths; ``own``: the sooner of :func:`timings` (the team's
-    common schedule and each UAV at its own pace)."""
-    if not own:
-        return time_team(points, t0, limits, v0, a0, max_tries, max_stretch)
-    return timings(points, t0, limits, v0, a0, max_tries, max_stretch)[0]
-
-
-def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray | None = None,
-            a0: np.ndarray | None = None, max_tries: int = 20, max_stretch: float = math.inf) -> list[Piece]:
-    """The team's paths timed on the team's common schedule and with each UAV at its own pace
-    (:func:`own_pace`; one UAV: the first only), those that meet the limits, soonest first
-    (``ValueError``: neither does)."""
-    found: list[Piece] = []
-    error: ValueError | None = None
-    for own in (False, True)[: 2 if np.asarray(points).shape[0] > 1 else 1]:
-        try:
-            found.append(time_team(points, t0, limits, v0, a0, max_tries, max_stretch, own))
-        except ValueError as exc:
-            error = error or exc
-    if not found:
-        assert error is not None
-        raise error
-    return sorted(found, key=lambda p: p.t1)
-
-
-def time_team(points: np.ndarray, t0: float, limits: VehicleLimits,
-              v0: np.ndarray | None = None, a0: np.ndarray | None = None,
-              max_tries: int = 20, max_stretch: float = math.inf, own: bool = False) -> Piece:
     """Time the team's paths ``points`` ``(N, M, 3)`` (absolute; ``points[:, 0]`` the state at
     ``t0``) starting with velocities ``v0`` and accelerations ``a0`` ``(N, 3)`` (default rest).
 
@@ -357,6 +330,24 @@ def time_team(points: np.ndarray, t0: float, limits: VehicleLimits,
     raise ValueError(f"no timing of the new paths keeps speed <= {limits.max_speed:g} m/s and "
                      f"acceleration <= {limits.max_acceleration:g} m/s^2 (peaks {v:.3g} m/s, "
                      f"{a:.3g} m/s^2 after a stretch of {stretch:.3g})")
+
+
+def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray | None = None,
+            a0: np.ndarray | None = None, max_tries: int = 20, max_stretch: float = math.inf) -> list[Piece]:
+    """The team's paths :func:`timed_path` on the team's common schedule and with each UAV at its
+    own pace (:func:`own_pace`; one UAV: the first only), those that meet the limits, soonest
+    first (``ValueError``: neither does)."""
+    found: list[Piece] = []
+    error: ValueError | None = None
+    for own in (False, True)[: 2 if np.asarray(points).shape[0] > 1 else 1]:
+        try:
+            found.append(timed_path(points, t0, limits, v0, a0, max_tries, max_stretch, own))
+        except ValueError as exc:
+            error = error or exc
+    if not found:
+        assert error is not None
+        raise error
+    return sorted(found, key=lambda p: p.t1)
 
 
 BRAKE_RAMP = 0.1
