@@ -101,35 +101,46 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
     }
 
 
-def popup_reach(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
-                radii: list[float], max_acceleration: float, notice_s: float) -> dict[str, Any]:
-    """The pop-up as the flight met it (its ``popup_lead_s`` is on the timing of the plan the
-    episode was built on; the receding horizon and the link re-time the flight): at its
-    appearance, for the UAV closest to contact along its velocity then (``times`` ``(T,)``,
-    ``actual``, ``velocity`` ``(N, T, 3)``; ``popup``: the episode's event), the seconds until
-    its body would touch the pop-up flying on (``popup_flown_lead_s``, 0 if it already does,
-    ``None`` if no UAV closes in), that UAV (0-based), and whether the pop-up appeared within its
-    braking reach (``popup_within_reach``): the distance to contact at most what it flies until it
-    notices (``notice_s``: a sensor period, a reflex check and the reflex latency) plus a
-    braking stop at three times ``max_acceleration`` (the reflex's)."""
-    from staghunt.flight.onboard import REFLEX_FACTOR
-    from staghunt.trajectory.quintic import BRAKE_RAMP
-
+def _closing(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
+             radii: list[float]) -> list[tuple[int, float, np.ndarray, np.ndarray]]:
+    """At the pop-up's appearance, every UAV closing in on it (``times`` ``(T,)``, ``actual``,
+    ``velocity`` ``(N, T, 3)``; ``popup``: the episode's event): ``(n, lead, p, v)`` with
+    ``lead`` the seconds until its body would touch it flying on (the first ``s >= 0`` with
+    ``|p + s v| = radius + body``; 0 if it already does), ``p`` its horizontal position from
+    the pop-up's centre and ``v`` its horizontal velocity then."""
     i = min(int(np.searchsorted(times, popup["time"] - 1e-9)), len(times) - 1)
     c = np.array([popup["x"], popup["y"]])
-    best: tuple[float, int, bool] | None = None
+    out = []
     for n, r in enumerate(radii):
         p, v = actual[n, i, :2] - c, velocity[n, i, :2]
         reach = popup["radius"] + r
         if np.hypot(*p) < reach:
-            lead, dist = 0.0, 0.0
-        else:  # the first s > 0 with |p + s v| = reach, if the UAV closes in
-            a, b, q = float(v @ v), float(p @ v), float(p @ p) - reach ** 2
-            disc = b * b - a * q
-            if a < 1e-12 or b >= 0 or disc < 0:
-                continue
-            lead = (-b - math.sqrt(disc)) / a
-            dist = lead * math.sqrt(a)
+            out.append((n, 0.0, p, v))
+            continue
+        a, b, q = float(v @ v), float(p @ v), float(p @ p) - reach ** 2
+        disc = b * b - a * q
+        if a >= 1e-12 and b < 0 and disc >= 0:
+            out.append((n, (-b - math.sqrt(disc)) / a, p, v))
+    return out
+
+
+def popup_reach(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
+                radii: list[float], max_acceleration: float, notice_s: float) -> dict[str, Any]:
+    """The pop-up as the flight met it (its ``popup_lead_s`` is on the timing of the plan the
+    episode was built on; the receding horizon and the link re-time the flight): at its
+    appearance, for the UAV closest to contact along its velocity then (:func:`_closing`), the
+    seconds until its body would touch the pop-up flying on (``popup_flown_lead_s``, 0 if it
+    already does, ``None`` if no UAV closes in), that UAV (0-based), and whether the pop-up
+    appeared within its braking reach (``popup_within_reach``): the distance to contact at most
+    what it flies until it notices (``notice_s``: a sensor period, a reflex check and the reflex
+    latency) plus a braking stop at three times ``max_acceleration`` (the reflex's)."""
+    from staghunt.flight.onboard import REFLEX_FACTOR
+    from staghunt.trajectory.quintic import BRAKE_RAMP
+
+    i = min(int(np.searchsorted(times, popup["time"] - 1e-9)), len(times) - 1)
+    best: tuple[float, int, bool] | None = None
+    for n, lead, _, v in _closing(times, actual, velocity, popup, radii):
+        dist = lead * float(np.linalg.norm(v))
         speed = float(np.linalg.norm(velocity[n, i]))
         brake = speed ** 2 / (2 * REFLEX_FACTOR * max_acceleration * (1 - BRAKE_RAMP))
         if best is None or lead < best[0]:
@@ -141,31 +152,21 @@ def popup_reach(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, pop
 
 def popup_swerve(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
                  radii: list[float], clearance: float, max_acceleration: float, react_s: float) -> bool | None:
-    """Whether every UAV closing in on the pop-up when it appeared (``times``, ``actual``,
-    ``velocity``, ``popup`` as :func:`popup_reach`) could have swerved round it at
-    ``max_acceleration``, flying on at its speed: the sideways offset its centre needs (the
-    pop-up's radius, its body and the required ``clearance``, less the centre's distance from
-    its line of flight) at most what it moves sideways at that acceleration in the time left
-    once the planner has answered (its lead less ``react_s``: a sensor period, the deadline and
-    the link's delay both ways), ``a T^2 / 2``. ``False``: only slowing down or stopping avoids
-    it, whatever the planner (a lower bound: the way back and the tracking allowance are left
-    out); ``None``: no UAV closes in."""
-    i = min(int(np.searchsorted(times, popup["time"] - 1e-9)), len(times) - 1)
-    c = np.array([popup["x"], popup["y"]])
+    """Whether every UAV closing in on the pop-up when it appeared (:func:`_closing`) could have
+    swerved round it at ``max_acceleration``, flying on at its speed: the sideways offset its
+    centre needs (the pop-up's radius, its body and the required ``clearance``, less the
+    centre's distance from its line of flight) at most what it moves sideways at that
+    acceleration in the time left once the planner has answered (its lead less ``react_s``: a
+    sensor period, the deadline and the link's delay both ways), ``a T^2 / 2``. ``False``: only
+    slowing down or stopping avoids it, whatever the planner (a lower bound: the way back and
+    the tracking allowance are left out); ``None``: no UAV closes in."""
     verdicts = []
-    for n, r in enumerate(radii):
-        p, v = actual[n, i, :2] - c, velocity[n, i, :2]
-        reach = popup["radius"] + r
-        a, b, q = float(v @ v), float(p @ v), float(p @ p) - reach ** 2
-        if np.hypot(*p) < reach:
+    for n, lead, p, v in _closing(times, actual, velocity, popup, radii):
+        if lead == 0.0:  # already touching it
             verdicts.append(False)
             continue
-        disc = b * b - a * q
-        if a < 1e-12 or b >= 0 or disc < 0:
-            continue
-        lead = (-b - math.sqrt(disc)) / a
-        off = abs(float(p[0] * v[1] - p[1] * v[0])) / math.sqrt(a)  # the centre's distance from the line
-        need = reach + clearance - off
+        off = abs(float(p[0] * v[1] - p[1] * v[0])) / float(np.linalg.norm(v))  # the centre's distance from the line
+        need = popup["radius"] + radii[n] + clearance - off
         left = max(0.0, lead - react_s)
         verdicts.append(need <= 0.5 * max_acceleration * left ** 2)
     return all(verdicts) if verdicts else None

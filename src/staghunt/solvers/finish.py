@@ -86,6 +86,7 @@ def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[
         return spent
     target = min(below, key=lambda c: _logs(c.J))
     plan, cert, name = target.plan, target.certificate, target.start + " (repaired)"
+    before = spent
     for _ in range(REPAIR_ROUNDS):
         assert cert is not None
         adopted, used = adopt_replies(model, plan, cert, engine)
@@ -98,6 +99,6 @@ def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[
         if cert is None:
             break
         if cert.is_equilibrium:
-            add(name, plan, cert, spent)
+            add(name, plan, cert, spent - before)
             break
     return spent
