@@ -55,12 +55,10 @@ HELPER_PART = ("uav_pass", "polish")
 """What the helper compiles on a cold cache while this process compiles the rest of what is
 asked (``team_pass``, ``select_global``, ``iterate_serial``): about even halves."""
 
-COLD_COMPILE_MEASURED = ("about 30 s on a quiet 2-core machine (27-30 s at load 1-3), a minute or more on a busy "
-                         "one (63-71 s at load 8-9)")
+COLD_COMPILE_MEASURED = "10-15 s on a quiet 2-core machine, longer on a busy one"
 """The one-time compilation announced on a cold cache: :data:`RUN` in two processes, as measured
-on this project's 2-core machines (``benchmarks/README.md``, "First run (issue 39)")."""
-COLD_COMPILE_ESTIMATE_S = 71
-"""The longest of those measurements (on the busy machine), in seconds."""
+on this project's 2-core machines (``benchmarks/README.md``, "First run": 10.0-10.8 s at load
+1.2-1.7 on 2026-11-27; busy machines have taken several times as long)."""
 NOTIFY_AFTER_S = 1.0
 """When the cache index cannot be read: loading every kernel from a warm cache takes well under
 this; beyond it we are compiling."""

@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from staghunt.engine.jit import compiled
+from staghunt.engine.jit import subroutine
 
 DECISION_TOL = 1e-9
 """Values within this (absolute, in the value's unit) of a decision threshold are recomputed exactly."""
@@ -50,7 +50,7 @@ _U64_ONE_BITS = np.uint64(0x3FF0000000000000)  # the bits of 1.0
 _U64_LOW32 = np.uint64(0xFFFFFFFF)
 
 
-@compiled()
+@subroutine
 def sincos_small(r: float) -> tuple[float, float]:
     """``(sin r, cos r)`` to ~1 ulp for ``|r| <= pi/4`` (no range reduction; the Cephes kernels)."""
     z = r * r
@@ -63,7 +63,7 @@ def sincos_small(r: float) -> tuple[float, float]:
     return r + r * z * ps, 1.0 - 0.5 * z + z * z * pc
 
 
-@compiled()
+@subroutine
 def sincos(x: float) -> tuple[float, float]:
     """``(sin x, cos x)`` to ~1 ulp for ``|x| < 1e5``: reduction by ``pi/2`` (Cody-Waite), Cephes
     polynomials, branch-free so that loops over particles vectorise. The encoding's angles stay
@@ -81,7 +81,7 @@ def sincos(x: float) -> tuple[float, float]:
     return sin_x, cos_x
 
 
-@compiled()
+@subroutine
 def atan2(y: float, x: float) -> float:
     """``atan2(y, x)`` to ~2 ulp with NumPy's (C99) signed-zero and quadrant rules.
 
@@ -112,7 +112,7 @@ def atan2(y: float, x: float) -> float:
     return math.copysign(r, y)
 
 
-@compiled()
+@subroutine
 def mix64(z: np.uint64) -> np.uint64:
     """SplitMix64 finaliser: a bijective 64-bit hash with full avalanche."""
     z = (z ^ (z >> _U64_30)) * _U64_M1
@@ -120,27 +120,27 @@ def mix64(z: np.uint64) -> np.uint64:
     return z ^ (z >> _U64_31)
 
 
-@compiled()
+@subroutine
 def counter_hash(key: np.uint64, counter: np.uint64) -> np.uint64:
     """Output number ``counter`` of the SplitMix64 stream seeded with ``key`` (counter-based:
     any draw is computed directly from its index, so results do not depend on threads or blocks)."""
     return mix64(key + counter * _U64_GOLDEN)
 
 
-@compiled()
+@subroutine
 def unit_bits(h: np.uint64) -> np.uint64:
     """The bits of a double in ``[1, 2)`` with the hash's top 52 bits as mantissa (view the
     stored value as float64 and subtract 1: a uniform in ``[0, 1)`` with 52 random bits)."""
     return (h >> _U64_12) | _U64_ONE_BITS
 
 
-@compiled()
+@subroutine
 def unit_bits_pair(h: np.uint64) -> tuple[np.uint64, np.uint64]:
     """Two such bit patterns from one hash, with its high and low 32 bits (PSO's ``r1``, ``r2``)."""
     return ((h >> _U64_32) << _U64_20) | _U64_ONE_BITS, ((h & _U64_LOW32) << _U64_20) | _U64_ONE_BITS
 
 
-@compiled()
+@subroutine
 def pairwise_lanes(vals: np.ndarray, n: int, nb: int, out: np.ndarray) -> None:
     """``out[b] = sum(vals[:n, b])`` in NumPy's pairwise order for ``n <= 128`` (sequential
     beyond); destroys ``vals``. ``vals``: ``(>= n, >= nb)``; ``out``: ``(>= nb,)``.

@@ -10,7 +10,7 @@ import math
 import numpy as np
 
 from staghunt.engine.fastmath import DECISION_TOL
-from staghunt.engine.jit import compiled
+from staghunt.engine.jit import subroutine
 from staghunt.engine.layout import (
     P_CELL,
     P_OX,
@@ -19,13 +19,13 @@ from staghunt.engine.layout import (
 )
 
 
-@compiled()
+@subroutine
 def fill(row: np.ndarray, nb: int, value: float) -> None:
     for b in range(nb):
         row[b] = value
 
 
-@compiled()
+@subroutine
 def is_player(players: np.ndarray, n: int) -> bool:
     for c in range(players.shape[0]):
         if players[c] == n:
@@ -33,7 +33,7 @@ def is_player(players: np.ndarray, n: int) -> bool:
     return False
 
 
-@compiled()
+@subroutine
 def rows_kept(solo: bool, every: bool, players: np.ndarray, n: int) -> bool:
     """Whether :func:`staghunt.engine.team_kernel._team_terms` makes UAV ``n``'s collisions and ``J`` (and so its formation
     error and nearest-distance rows): every UAV's, unless ``solo`` without ``every``, then the
@@ -41,7 +41,7 @@ def rows_kept(solo: bool, every: bool, players: np.ndarray, n: int) -> bool:
     return not solo or every or is_player(players, n)
 
 
-@compiled()
+@subroutine
 def ground_z(x: float, y: float, h: float, grid: np.ndarray, par: np.ndarray) -> float:
     """Absolute altitude ``h + g(x, y)`` exactly as :meth:`staghunt.world.Terrain.absolute`
     (MATLAB rounding for the nearest cell, float32 sums for a float32 grid, or bilinear)."""
@@ -65,7 +65,7 @@ def ground_z(x: float, y: float, h: float, grid: np.ndarray, par: np.ndarray) ->
     return bilinear_z(x, y, h, grid, par[P_OX], par[P_OY], par[P_CELL])
 
 
-@compiled()
+@subroutine
 def bilinear_z(x: float, y: float, h: float, grid: np.ndarray, ox: float, oy: float, cell: float) -> float:
     """:func:`ground_z` on a bilinear grid (``P_TERRAIN`` 3) with origin ``ox, oy`` and cell
     size ``cell``. Branch-free, so a loop over lanes that calls it vectorises (gathers): call it
@@ -84,7 +84,7 @@ def bilinear_z(x: float, y: float, h: float, grid: np.ndarray, ox: float, oy: fl
     return h + (top * (1 - fv) + bottom * fv)
 
 
-@compiled()
+@subroutine
 def axis_distance(ax: float, ay: float, bx: float, by: float, cx: float, cy: float) -> float:
     """Horizontal distance from the axis ``(cx, cy)`` to segment ``a b`` with exactly the
     arithmetic of :func:`staghunt.costs.single.segment_axis_distance` (``hypot`` from libm)."""
@@ -101,7 +101,7 @@ def axis_distance(ax: float, ay: float, bx: float, by: float, cx: float, cy: flo
     return min(math.hypot(axx, axy), math.hypot(bxx, bxy))
 
 
-@compiled()
+@subroutine
 def dominates_at(cost_a: np.ndarray, ia: int, va: float, cost_b: np.ndarray, ib: int, vb: float) -> bool:
     """:func:`staghunt.solvers.dominance.dominates` for columns ``ia`` of ``cost_a`` and ``ib`` of
     ``cost_b`` (``(C, P)`` arrays)."""
@@ -119,7 +119,7 @@ def dominates_at(cost_a: np.ndarray, ia: int, va: float, cost_b: np.ndarray, ib:
     return va < vb
 
 
-@compiled()
+@subroutine
 def threats_exact(b, xn, yn, seg, cyl, radius, margin, clear, acc, dep) -> None:  # noqa: ANN001
     """Lane ``b``: the obstacle pairs that the vectorised pass left out (fast distance within
     DECISION_TOL of ``R + r + c`` or ``R + r + Delta``), with NumPy's exact arithmetic."""
@@ -153,7 +153,7 @@ def threats_exact(b, xn, yn, seg, cyl, radius, margin, clear, acc, dep) -> None:
                 dep[b] += depth if depth >= 0.0 else 0.0
 
 
-@compiled()
+@subroutine
 def point_segment_distance(px: float, py: float, cx: float, cy: float, dx: float, dy: float) -> float:
     """:func:`staghunt.costs.prisms.point_segment_distance` for one point and one segment."""
     ex = dx - cx
@@ -165,7 +165,7 @@ def point_segment_distance(px: float, py: float, cx: float, cy: float, dx: float
     return math.hypot(px - (cx + t * ex), py - (cy + t * ey))
 
 
-@compiled()
+@subroutine
 def prism_segment_distance(xa: float, ya: float, za: float, xb: float, yb: float, zb: float,
                            q: int, prm: np.ndarray, pedge: np.ndarray, grow: float) -> float:
     """:func:`staghunt.costs.prisms.prism_distance` of one segment and prism ``q`` (same
@@ -214,7 +214,7 @@ def prism_segment_distance(xa: float, ya: float, za: float, xb: float, yb: float
     return 0.0 if inside else d
 
 
-@compiled()
+@subroutine
 def prism_threats(nb, xn, yn, zn, prm, pedge, radius, margin, clear, ceiling, acc, dep) -> None:  # noqa: ANN001
     """Add prism threats and the ceiling (:mod:`staghunt.costs.prisms`) of one UAV's lanes to
     ``acc`` (cost) and ``dep`` (violation). A pair whose bounding boxes are farther apart than

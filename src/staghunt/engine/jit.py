@@ -8,12 +8,16 @@ re-optimises it. For the large sections of the kernel that multiplies the one-ti
   cached on disk under a stamp of *every* kernel module (:data:`KERNEL_MODULES`): Numba's own
   stamp covers the file that defines a function only, while an entry embeds code from several
   files, so a change in one of them would otherwise leave a stale entry in the cache.
-- ``subroutine``: a function used by one caller only is typed and lowered only as part of that
-  caller (through Numba's own mechanism for internal helpers, ``BaseContext.compile_subroutine``),
-  and cached with it. It cannot be called from Python. (A library that only links the
+- ``subroutine``: a helper of the kernels (their sections, the geometry, the fast maths) is
+  typed, lowered and optimised once per process and argument types, then linked into each
+  jitted caller that uses it (Numba's own mechanism for internal helpers, as
+  ``BaseContext.compile_subroutine``), and cached with the entry. Its library is optimised but
+  never turned into machine code of its own (:class:`_UnemittedLibrary`): nothing calls it there,
+  and an ``njit`` helper also gets a Python wrapper for every signature. From Python (tests) it
+  runs as an ``njit`` function compiled on first use. (A library that only links the
   subroutine's code, never optimising it on its own, saved about 2 s of the first compilation of
   each large entry but made the warm Algorithm 1 13-49 % slower: LLVM's second pass over the
-  optimised subroutine finds more; not kept, ``benchmarks/README.md``, "First run".)
+  optimised subroutine finds more; not kept, ``benchmarks/JOURNAL.md``, "First run".)
 - ``entry_call``: an ``njit`` entry that Python and several jitted callers all call is called
   from the jitted ones through its address, found at run time in a table of its compiled code
   (``entry_table``), so that no caller links or re-optimises it.
@@ -35,6 +39,9 @@ from typing import Any, Callable
 from numba import njit
 from numba.core import compiler, config, types
 from numba.core.caching import CompileResultCacheImpl, FunctionCache
+from numba.core.codegen import JITCodeLibrary
+from numba.core.extending import _Intrinsic
+from numba.core.compiler_lock import global_compiler_lock
 from numba.extending import intrinsic
 
 KERNEL_MODULES = ("jit", "fastmath", "layout", "geometry", "uav_kernel", "team_kernel", "search_kernels", "kernels")
@@ -91,30 +98,86 @@ def compiled(parallel: bool = False) -> Callable[[Callable[..., Any]], Any]:
     return wrap
 
 
-def subroutine(fn: Callable[..., None]) -> Any:
-    """Wrap a plain Python function returning ``None`` as a jit-only subroutine (IEEE semantics,
-    NumPy error model: no exception on division by zero, no ``fastmath``). With
+def subroutine(fn: Callable[..., Any]) -> Any:
+    """Wrap a plain Python function as a subroutine of the compiled kernels (IEEE semantics,
+    NumPy error model: no exception on division by zero, no ``fastmath``): a jitted caller
+    types, lowers and optimises it once per process and argument types, and links its optimised
+    code into its own (:class:`_UnemittedLibrary`: no machine code or Python wrapper of its own,
+    which a function decorated with ``njit`` gets for every signature a caller uses). Called from
+    Python (tests), it runs as an ``njit`` function compiled on first use. With
     ``NUMBA_DISABLE_JIT=1`` the plain function is returned (debugging in Python)."""
     if config.DISABLE_JIT:
         return fn
-    params = list(inspect.signature(fn).parameters)
+    from numba.core.registry import cpu_target
 
-    def codegen(context: Any, builder: Any, signature: Any, args: Any) -> Any:
-        flags = compiler.Flags()
-        flags.error_model = "numpy"
-        flags.nrt = True
-        flags.no_cpython_wrapper = True
-        flags.no_cfunc_wrapper = True
-        cres = context.compile_subroutine(builder, fn, signature, flags=flags)
-        return context.call_internal(builder, cres.fndesc, signature, args)
+    def typer(typingctx: Any, *args: Any) -> Any:
+        argtys = tuple(types.unliteral(a) for a in args)
+        cres = _compile_subroutine(cpu_target.target_context, fn, argtys)
+        signature = cres.signature.return_type(*argtys)
 
-    names = ", ".join(params)
-    namespace: dict[str, Any] = {"types": types, "codegen": codegen}
-    exec(f"def {fn.__name__}(typingctx, {names}):\n    return types.none({names}), codegen\n", namespace)
-    typer = namespace[fn.__name__]
-    typer.__doc__ = fn.__doc__
-    typer.__module__ = fn.__module__
-    return intrinsic(typer)
+        def codegen(context: Any, builder: Any, sig: Any, llargs: Any) -> Any:
+            cres = _compile_subroutine(context, fn, argtys)
+            context.active_code_library.add_linking_library(cres.library)
+            values = [context.cast(builder, v, t, u) for v, t, u in zip(llargs, sig.args, argtys)]
+            return context.call_internal(builder, cres.fndesc, signature, values)
+
+        return signature, codegen
+
+    params = ", ".join(inspect.signature(fn).parameters)
+    namespace: dict[str, Any] = {"typer": typer}
+    exec(f"def {fn.__name__}(typingctx, {params}):\n    return typer(typingctx, {params})\n", namespace)
+    wrapped = namespace[fn.__name__]
+    wrapped.__doc__ = fn.__doc__
+    wrapped.__module__ = fn.__module__
+    sub = _Subroutine(fn.__name__, wrapped)
+    sub._register()
+    sub.py_func = fn
+    sub.__doc__ = fn.__doc__
+    return sub
+
+
+class _Subroutine(_Intrinsic):
+    """A :func:`subroutine`: an intrinsic to jitted callers, an ``njit`` function (compiled on
+    first use) to Python."""
+
+    py_func: Callable[..., Any] | None = None
+    _python: Any = None
+
+    def __call__(self, *args: Any) -> Any:
+        if self._python is None:
+            self._python = njit(error_model="numpy")(self.py_func)
+        return self._python(*args)
+
+
+class _UnemittedLibrary(JITCodeLibrary):
+    """A subroutine's code library: optimised (its callers link the optimised module), but never
+    turned into machine code of its own, which nothing calls: the caller's module holds the code
+    that runs."""
+
+    def _finalize_final_module(self) -> None:
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+
+
+def _compile_subroutine(context: Any, fn: Callable[..., Any], argtys: tuple[Any, ...]) -> Any:
+    """Compile ``fn`` for ``argtys`` into an :class:`_UnemittedLibrary`, once per target context
+    (its ``cached_internal_func``, as ``context.compile_subroutine`` does)."""
+    key = (fn.__code__, argtys, _UnemittedLibrary)
+    cres = context.cached_internal_func.get(key)
+    if cres is None:
+        with global_compiler_lock:
+            flags = compiler.Flags()
+            flags.error_model = "numpy"
+            flags.nrt = True
+            flags.no_compile = True
+            flags.no_cpython_wrapper = True
+            flags.no_cfunc_wrapper = True
+            library = _UnemittedLibrary(context.codegen(), fn.__name__)
+            cres = compiler.compile_internal(context.typing_context, context, library, fn, argtys, None, flags,
+                                             locals={})
+        context.cached_internal_func[key] = cres
+    return cres
 
 
 def entry_call(dispatcher: Any) -> Any:

@@ -23,8 +23,7 @@ import numpy as np
 
 from staghunt.costs import CostModel, Costs
 from staghunt.engine.arrays import ModelArrays, SwarmArrays, model_arrays, swarm_arrays
-from staghunt.engine.compilation import (  # noqa: F401  (prepare and the estimate: re-exported)
-    COLD_COMPILE_ESTIMATE_S,
+from staghunt.engine.compilation import (  # noqa: F401  (prepare: re-exported)
     EVALUATION,
     RUN,
     parallel_ready,
