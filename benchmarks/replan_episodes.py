@@ -2,13 +2,14 @@
 JSON, so that the same episodes can be flown by other code (the benchmark's "before" column) or
 again.
 
-- **scenario 2** (3 UAVs), planned once at the paper's setting (2000 x 1500, K = 10, seed 1):
+- **scenario 2** (3 UAVs), planned once at the paper's setting (2000 x 1500, K = 10, seed 1)
+  with the flight's margins (:func:`staghunt.flight.offline.takeoff_scenario`, as ``fly`` plans):
   a site vehicle (a cylinder of radius 2.5 m, 2-4 m/s, a known motion) crosses the team's route
   on a straight line across the site, timed to reach the route within +-2 s of the team; the
   plan is made sound against it before take-off; then a cylinder of radius 2-6 m appears on a
   random UAV's route 2-5 s ahead of it (the UAV would touch it 2-5 s after it appears; at a
   random time in the first 60 % of the flight);
-- **site_wedge** (8 UAVs), planned once at its own setting (400 x 300, seed 1): the tower
+- **site_wedge** (8 UAVs), planned once at its own setting (400 x 300, seed 1), the same way: the tower
   crane's jib with its load (a box 3 m wide from 10 to 35 m above ground, 55-70 m long) slews
   into the route (3-8 deg/s, timed to sweep the route when the team is near), plus a pop-up
   load (radius 3-6 m) 2-5 s ahead of a random UAV.
@@ -184,6 +185,8 @@ def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]
     import time
 
     import staghunt
+    from staghunt.flight import FlyConfig
+    from staghunt.flight.offline import takeoff_scenario
     from staghunt.world.dynamic import Dynamics
 
     episodes: list[dict[str, Any]] = []
@@ -193,7 +196,7 @@ def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]
             continue
         sc = staghunt.load_scenario(kind)
         t0 = time.perf_counter()
-        res = staghunt.plan(sc, seed=1)
+        res = staghunt.plan(takeoff_scenario(sc, FlyConfig()), seed=1)  # with the flight's margins, as `fly` plans
         plans[kind] = {"status": res.status.value, "plan_s": time.perf_counter() - t0,
                        "particles": sc.solver.particles, "iterations": sc.solver.iterations}
         wp = np.array(res.waypoints)

@@ -168,6 +168,35 @@ def test_a_clearance_breach_is_reported_as_a_breach_not_as_arrived(tmp_path):
     assert summary["verdict"]["breaches"][0]["uav"] == "UAV1" and summary["verdict"]["breaches"][0]["other"] == "post"
 
 
+def test_a_flight_plans_its_take_off_with_the_margins_its_replans_keep():
+    """``fly`` planning its own take-off solves the game with the required margins grown by the
+    tracking allowance and the curve's and timing's slack (the re-plans' game). A post on UAV1's
+    route, a threat cost that fades 1 m beyond the clearance: the plan of ``staghunt plan``
+    goes round it on its 1 m constraint (1.03 m, measured), the flight's own plan beyond the
+    required clearance plus the allowance, and arrives with no breach. A start closer than that
+    to an obstacle relaxes the clearance to what it has, never below the required one."""
+    from staghunt.flight.known import CURVE_SLACK, TIMING_SLACK
+    from staghunt.flight.offline import takeoff_scenario
+    from staghunt.safety.measure import static_clearance
+
+    sc = load_scenario(SMALL)
+    post = Cylinder(30.0, 13.0, 3.0, "post")
+    sc = replace(sc, world=replace(sc.world, cylinders=sc.world.cylinders + (post,)),
+                 costs=replace(sc.costs, danger_margin=1.0))
+    grown = takeoff_scenario(sc, FIXED)
+    assert grown.costs.min_clearance == pytest.approx(1.0 + FIXED.allowance + CURVE_SLACK)  # 1.45 m
+    assert grown.costs.safe_distance == pytest.approx(2.0 + 2 * FIXED.allowance + TIMING_SLACK)  # 2.6 m
+    assert grown.world == sc.world and grown.team == sc.team
+    near = Cylinder(5.0, 15.0 + 0.5 + 1.2 + 1.0, 1.0, "near")  # 1.2 m from UAV1's start
+    tight = takeoff_scenario(replace(sc, world=replace(sc.world, cylinders=sc.world.cylinders + (near,))), FIXED)
+    assert tight.costs.min_clearance == pytest.approx(1.2)
+    r = fly(sc, seed=0, config=FIXED)
+    assert r.status is FlightStatus.ARRIVED and not r.verdict.breaches
+    ref = r.reference  # (N, T, 3)
+    c = static_clearance((post,), (), ref, np.array([u.radius for u in sc.team]))
+    assert c.min() >= 1.0 + FIXED.allowance - 0.01
+
+
 def test_receding_horizon_replans_with_nothing_sensed():
     """A zigzag plan, nothing sensed: the receding horizon re-solves from the measured state every
     second, warm-started, sends the faster plans it finds, and the team arrives long before the

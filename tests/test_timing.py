@@ -141,3 +141,26 @@ def test_each_uav_at_its_own_pace_when_the_teams_legs_differ():
     # the common schedule: each of the two legs as long as its longer UAV leg, for both UAVs
     dense, _ = dense_legs(pts, DENSE_SPACING)
     assert team.t1 == pytest.approx(knot_times(dense, lim)[-1], rel=0.25)
+
+
+def test_a_uav_that_waits_while_its_team_mate_moves_does_not_slow_the_team_to_a_crawl():
+    """A plan where one UAV stays put for a leg while its team-mate flies (a re-plan around a
+    known motion made such a plan: benchmarks/replan.py, scenario-2 episode 12, timed to 418 s
+    for 150 m routes). Its zero-length legs have no direction, hence no turn: the team's common
+    schedule is not capped at a crawl there, and stays within the limits."""
+    from staghunt.trajectory.quintic import DENSE_SPACING, knot_times, split_legs as dense_legs, timed_path
+
+    lim = VehicleLimits()
+    a = np.array([[0.0, 0.0, 10.0], [30.0, 0.0, 10.0], [60.0, 0.0, 10.0]])
+    b = np.array([[0.0, 20.0, 10.0], [0.0, 20.0, 10.0], [30.0, 20.0, 10.0]])  # waits, then flies
+    pts = np.stack([a, b])
+    dense, _ = dense_legs(pts, DENSE_SPACING)
+    alone = timed_path(a[None], 0.0, lim).t1
+    assert knot_times(dense, lim)[-1] <= 1.01 * knot_times(dense[:1], lim)[-1]  # the mover's own schedule
+    team = timed_path(pts, 0.0, lim)
+    assert team.t1 < 2.0 * alone  # before: b's still legs counted as right-angle turns of radius 0
+    t = np.linspace(0.0, team.t1, 4001)
+    pos, vel, acc = team.state(t)[:3]
+    assert np.linalg.norm(vel, axis=-1).max() <= lim.max_speed
+    assert np.linalg.norm(acc, axis=-1).max() <= lim.max_acceleration * 1.001
+    assert np.allclose(pos[:, -1], pts[:, -1], atol=1e-6)
