@@ -14,7 +14,9 @@ again.
   into the route (3-8 deg/s, timed to sweep the route when the team is near), plus a pop-up
   load (radius 3-6 m) 2-5 s ahead of a random UAV.
 
-Every draw is seeded by the episode's number: the same command builds the same episodes.
+Every draw is seeded by the episode's number: the same command builds the same episodes. A known
+motion that no plan can avoid (``fly`` refuses to take off: a truck that parks on the route) is
+drawn again, and the plans' figures list the episodes drawn again and why.
 """
 
 from __future__ import annotations
@@ -25,6 +27,10 @@ from typing import Any
 
 import numpy as np
 import provenance
+
+
+MAX_DRAWS = 5
+"""Draws of an episode's known motion until the flight can take off (:func:`build`)."""
 
 
 def _reference(scenario: Any, waypoints: np.ndarray) -> Any:
@@ -186,7 +192,7 @@ def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]
 
     import staghunt
     from staghunt.flight import FlyConfig
-    from staghunt.flight.offline import takeoff_scenario
+    from staghunt.flight.offline import FlightInputError, takeoff_scenario
     from staghunt.world.dynamic import Dynamics
 
     episodes: list[dict[str, Any]] = []
@@ -201,11 +207,23 @@ def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]
                        "particles": sc.solver.particles, "iterations": sc.solver.iterations}
         wp = np.array(res.waypoints)
         ref = _reference(sc, wp)
+        redrawn: list[str] = []
         for e in range(count):
-            rng = np.random.default_rng([0 if kind == "scenario2" else 1, e])
-            known = Dynamics(moving=(_truck(sc, ref, rng),)) if kind == "scenario2" else Dynamics(jibs=(_jib(sc, ref, rng),))
-            wp2, dyn, n, lead, windows = _with_popup(kind, e, sc, wp, known)
+            for draw in range(MAX_DRAWS):
+                # draw 0 is the episode's seed of old; a known motion that no plan avoids (`fly`
+                # refuses the flight before take-off) is drawn again, and said so
+                rng = np.random.default_rng([0 if kind == "scenario2" else 1, e, *([draw] if draw else [])])
+                known = (Dynamics(moving=(_truck(sc, ref, rng),)) if kind == "scenario2"
+                         else Dynamics(jibs=(_jib(sc, ref, rng),)))
+                try:
+                    wp2, dyn, n, lead, windows = _with_popup(kind, e, sc, wp, known)
+                    break
+                except FlightInputError as err:
+                    redrawn.append(f"episode {e}, draw {draw}: {err}")
+            else:
+                raise RuntimeError(f"{kind} episode {e}: no draw of its known motion can be flown")
             episodes.append(to_plain(kind, e, wp2, dyn, n, lead, windows))
+        plans[kind]["redrawn"] = redrawn
     return episodes, plans
 
 

@@ -40,8 +40,8 @@ from numba import njit
 from numba.core import compiler, config, types
 from numba.core.caching import CompileResultCacheImpl, FunctionCache
 from numba.core.codegen import JITCodeLibrary
-from numba.core.extending import _Intrinsic
 from numba.core.compiler_lock import global_compiler_lock
+from numba.core.extending import _Intrinsic
 from numba.extending import intrinsic
 
 KERNEL_MODULES = ("jit", "fastmath", "layout", "geometry", "uav_kernel", "team_kernel", "search_kernels", "kernels")
@@ -116,10 +116,10 @@ def subroutine(fn: Callable[..., Any]) -> Any:
         signature = cres.signature.return_type(*argtys)
 
         def codegen(context: Any, builder: Any, sig: Any, llargs: Any) -> Any:
-            cres = _compile_subroutine(context, fn, argtys)
-            context.active_code_library.add_linking_library(cres.library)
+            linked = _compile_subroutine(context, fn, argtys)  # the typer's, from the context's cache
+            context.active_code_library.add_linking_library(linked.library)
             values = [context.cast(builder, v, t, u) for v, t, u in zip(llargs, sig.args, argtys)]
-            return context.call_internal(builder, cres.fndesc, signature, values)
+            return context.call_internal(builder, linked.fndesc, signature, values)
 
         return signature, codegen
 
