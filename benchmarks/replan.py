@@ -308,7 +308,7 @@ def solve_only(e: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     wp, dyn = replan_episodes.from_plain(e)
     sc = replace(staghunt.load_scenario(e["kind"]), dynamics=dyn)
     config = FlyConfig(**overrides)
-    _, ref, _ = plan_around(check_plan(sc, "game", 1, sc.solver, engine), dyn, wp, config)
+    _, ref, _, _ = plan_around(check_plan(sc, "game", 1, sc.solver, engine), dyn, wp, config)
     popup = dyn.events[0]
     planner = Replanner(sc, dyn, config, engine, np.random.default_rng(e["episode"]))
     planner.known.sensed[popup.name] = popup.shape

@@ -144,7 +144,7 @@ def _with_popup(kind: str, episode: int, scenario: Any, waypoints: np.ndarray, k
     from staghunt.world.dynamic import Dynamics
 
     request = check_plan(replace(scenario, dynamics=known), "game", 1, scenario.solver, "auto")
-    wp2, ref, windows = plan_around(request, known, waypoints, FlyConfig())
+    wp2, ref, windows, _ = plan_around(request, known, waypoints, FlyConfig())
     rng = np.random.default_rng([2 if kind == "scenario2" else 3, episode])
     radius, name = ((2.0, 6.0), "pop-up") if kind == "scenario2" else ((3.0, 6.0), "pop-up load")
     popup, n, lead = _popup(scenario, ref, rng, radius, name)

@@ -191,10 +191,38 @@ def test_a_flight_plans_its_take_off_with_the_margins_its_replans_keep():
     tight = takeoff_scenario(replace(sc, world=replace(sc.world, cylinders=sc.world.cylinders + (near,))), FIXED)
     assert tight.costs.min_clearance == pytest.approx(1.2)
     r = fly(sc, seed=0, config=FIXED)
-    assert r.status is FlightStatus.ARRIVED and not r.verdict.breaches
+    assert r.status is FlightStatus.ARRIVED and not r.verdict.breaches and r.plan_margins == "flight"
     ref = r.reference  # (N, T, 3)
     c = static_clearance((post,), (), ref, np.array([u.radius for u in sc.team]))
     assert c.min() >= 1.0 + FIXED.allowance - 0.01
+
+
+def test_without_a_plan_at_the_flights_margins_the_take_off_falls_back_to_the_required_ones(monkeypatch):
+    """When no plan at the flight's margins passes the check against the known motions, the
+    take-off plan is solved again at the required margins, and the flight says so; when none
+    passes at all, ``fly`` refuses the flight before take-off."""
+    from staghunt.api import check_plan
+    from staghunt.flight import offline
+
+    sc = load_scenario(SMALL)
+    real = offline.offline_plan
+    seen: list[int] = []  # one entry per round of offline_plan
+
+    def first_fails(scenario, dyn, wp, config, solve):  # noqa: ANN001
+        seen.append(len(seen))
+        out = real(scenario, dyn, wp, config, solve)
+        return (*out[:3], ["made up: no plan at the flight's margins"]) if len(seen) == 1 else out
+
+    monkeypatch.setattr(offline, "offline_plan", first_fails)
+    request = check_plan(sc, "game", 0, sc.solver, "auto")
+    wp, ref, windows, margins = offline.plan_around(request, Dynamics(), None, FIXED)
+    assert margins == "required" and len(seen) == 2 and windows == ()
+    assert wp.shape == (2, sc.solver.waypoints, 3) and ref.arrival > 0
+    seen.clear()
+    assert offline.plan_around(request, Dynamics(), wp, FIXED)[3] == "given" and len(seen) == 2
+    monkeypatch.setattr(offline, "offline_plan", lambda *a: (*real(*a)[:3], ["made up: a truck parks there"]))
+    with pytest.raises(offline.FlightInputError, match="cannot be flown safely: made up: a truck"):
+        offline.plan_around(request, Dynamics(), wp, FIXED)
 
 
 def test_receding_horizon_replans_with_nothing_sensed():
@@ -307,11 +335,12 @@ def test_flight_files_and_fly_from_a_result_file(tmp_path, calm):
     assert summary["link"]["delay_s"] == 0.1 and summary["latency"] == {"fixed_s": 0.3}
     assert summary["uavs"][0]["tracking_rms_m"] == pytest.approx(float(calm.tracking_rms[0]))
     assert summary["uavs"][0]["min_ground_clearance_m"] > 1.0
+    assert summary["plan_margins"] == "flight"  # fly planned its take-off itself
     scenario = load_scenario(SMALL)
     result = plan(scenario, seed=2)
     write_result(result, tmp_path / "result.json")
     flown = fly(str(tmp_path / "result.json"), seed=2, config=FIXED)
-    assert np.allclose(flown.plan_waypoints, result.waypoints)
+    assert np.allclose(flown.plan_waypoints, result.waypoints) and flown.plan_margins == "given"
 
 
 def test_fly_refuses_bad_settings_before_simulating():

@@ -283,7 +283,7 @@ def fly(source: Any, *, progress: Callable[[float, float], None] | None = None, 
     rng = np.random.default_rng(seed)
 
     planned_here = waypoints is None
-    wp, ref0, windows = plan_around(request.plan, dyn, waypoints, config)
+    wp, ref0, windows, plan_margins = plan_around(request.plan, dyn, waypoints, config)
     check_events_against_plan(scenario, dyn, ref0)
     flight, parts = simulate(scenario, dyn, ref0, config, resolved, rng.spawn(1)[0], progress,
                              request.certify_search, config.outages)
@@ -300,7 +300,7 @@ def fly(source: Any, *, progress: Callable[[float, float], None] | None = None, 
         separation_limit=scenario.costs.safe_distance + 2 * r, required_clearance=float(scenario.costs.min_clearance),
         tracking_rms=np.sqrt(np.mean(err**2, axis=1)), tracking_max=err.max(axis=1), arrival=arrival,
         baseline_arrival=baseline_arrival(ref0), stops=station.stops, holds=parts.onboard.holds, plan_waypoints=wp,
-        plan_windows=tuple(windows), wall_time_s=time.perf_counter() - wall0,
+        plan_windows=tuple(windows), plan_margins=plan_margins, wall_time_s=time.perf_counter() - wall0,
         link={"delay_s": parts.radio.link.delay, "jitter_s": parts.radio.link.jitter, "loss": parts.radio.link.loss,
               "sent": parts.radio.sent, "lost": parts.radio.lost},
         details={"compile_time_s": compile_s, "engine": resolved.name, "planned_offline": planned_here},

@@ -55,7 +55,9 @@ class FlightResult:
       ``baseline_arrival``: when the plan without events arrives; ``extra_time``: the last
       arrival minus that.
     - ``stops``: synchronised stops to hover; ``holds``: UAVs that held on their own (plan
-      timeout, missed plan, reflex); ``plan_*``: the offline plan before take-off.
+      timeout, missed plan, reflex); ``plan_*``: the offline plan before take-off
+      (``plan_margins``: which margins it was solved with,
+      :data:`staghunt.flight.offline.PLAN_MARGINS`).
     - ``link``: messages sent and lost.
     """
 
@@ -81,6 +83,7 @@ class FlightResult:
     holds: int
     plan_waypoints: np.ndarray
     plan_windows: tuple[tuple[str, float, float], ...]
+    plan_margins: str
     wall_time_s: float
     link: dict[str, Any] = field(default_factory=dict)
     details: dict[str, Any] = field(default_factory=dict)

@@ -127,6 +127,7 @@ def flight_summary(result: Any) -> dict[str, Any]:
         "link": result.link,
         "uavs": per_uav,
         "plan_windows": [{"obstacle": w[0], "from": w[1], "to": w[2]} for w in result.plan_windows],
+        "plan_margins": result.plan_margins,
         "config": {k: (_num(x) if isinstance(x, float) else x) for k, x in config.items()},
         "engine": result.details.get("engine"),
         "compile_time_s": result.details.get("compile_time_s"),
