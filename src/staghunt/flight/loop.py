@@ -60,7 +60,7 @@ class Parts:
     station: GroundStation
 
 
-def build(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig, engine: Any,
+def build(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig, engine: Engine,
           rng: np.random.Generator, certify_search: SolverSettings | None = None,
           outages: tuple[Outage, ...] = ()) -> Parts:
     """The parts of a flight of ``ref0``, each with its own generator drawn from ``rng``."""
@@ -96,7 +96,7 @@ def _arrived(parts: Parts, goals: np.ndarray) -> float:
     return max(ends)
 
 
-def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig, engine: Any,
+def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig, engine: Engine,
              rng: np.random.Generator, progress: Callable[[float, float], None] | None = None,
              certify_search: SolverSettings | None = None, outages: tuple[Outage, ...] = ()
              ) -> tuple[dict[str, Any], Parts]:

@@ -205,8 +205,7 @@ def team_refine(model: CostModel, plan: np.ndarray, each: int, left: int,
     slid, spent = team_slide(model, plan, min(each, left), engine)
     best, used = team_polish(model, slid, min(each, left - spent), engine)
     spent += used
-    N, K = plan.shape[0], plan.shape[1]
-    sweep = N * 3 * K * (K + 1)
+    sweep = plan.shape[0] * len(shift_moves(plan.shape[1]))  # path evaluations of one team_shift sweep
     for _ in range(SHIFT_PASSES if each >= 2 * sweep else 0):
         shifted, used = team_shift(model, best, min(each, left - spent), engine)
         spent += used
