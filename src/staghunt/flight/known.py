@@ -40,6 +40,14 @@ equilibrium lies on its constraints) would otherwise fail the check by a few cen
 (measured: 4.44-4.49 m against 4.5 m) and could not be flown."""
 
 
+def game_margins(accepted: Margins) -> tuple[float, float]:
+    """``(clearance, d_s)`` the game keeps for a plan accepted at ``accepted`` (the required
+    margins grown by the tracking allowance): :data:`CURVE_SLACK` and :data:`TIMING_SLACK` more.
+    The re-plans' game (:meth:`staghunt.flight.replan.Replanner._problem`) and the take-off plan
+    ``fly`` solves (:func:`staghunt.flight.offline.takeoff_scenario`) both keep them."""
+    return accepted.clearance + CURVE_SLACK, accepted.separation + TIMING_SLACK
+
+
 @dataclass
 class KnownWorld:
     """What the planner knows of the site: the scenario's static obstacles, the appeared ones

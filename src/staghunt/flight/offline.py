@@ -11,7 +11,7 @@ import numpy as np
 from staghunt.api import PlanRequest, plan
 from staghunt.costs import to_absolute
 from staghunt.flight.config import FlyConfig
-from staghunt.flight.known import CURVE_SLACK, TIMING_SLACK, Acceptance, KnownWorld, covers, swept_obstacles
+from staghunt.flight.known import CURVE_SLACK, Acceptance, KnownWorld, covers, game_margins, swept_obstacles
 from staghunt.safety import Margins
 from staghunt.safety.measure import moving_clearance, static_clearance
 from staghunt.scenario import Scenario
@@ -41,27 +41,25 @@ def offline_acceptance(scenario: Scenario, dyn: Dynamics, config: FlyConfig) -> 
 
 def takeoff_scenario(scenario: Scenario, config: FlyConfig) -> Scenario:
     """The scenario a flight solves its own take-off plan on: the clearance and ``d_s`` its
-    re-plans' game keeps (:meth:`staghunt.flight.replan.Replanner._problem`): the required
-    margins grown by the tracking allowance, plus the timed curve's
-    (:data:`~staghunt.flight.known.CURVE_SLACK`) and the timing's
-    (:data:`~staghunt.flight.known.TIMING_SLACK`) slack, so that vehicles tracking the plan keep
-    the required margins. The paper's plans lie on their constraints: solved at the required
+    re-plans' game keeps (:func:`~staghunt.flight.known.game_margins` of the required margins
+    grown by the tracking allowance), so that vehicles tracking the plan keep the required
+    margins. The paper's plans lie on their constraints: solved at the required
     margins themselves, the timed curve of 87 of the 100 scenario-2 episodes (as first built) of
     ``benchmarks/replan.py`` passed within 5 cm of the required clearance, and tracking errors
     made breaches (benchmarks/JOURNAL.md, "Closed loop: the take-off plan's margins"). Where a
     start or a goal is closer than that to an obstacle or to a team-mate, the margin is relaxed
     to what it has (never below the required one)."""
     required = Margins.required(scenario)
-    m = required.grown(config.allowance)
+    need, d_s = game_margins(required.grown(config.allowance))
     g = scenario.world.terrain
     ends = np.concatenate([to_absolute(g, scenario.starts()[:, None]), to_absolute(g, scenario.goals()[:, None])],
                           axis=1)  # (N, 2, 3)
     r = np.array([u.radius for u in scenario.team])
     have = float(static_clearance(scenario.world.cylinders, scenario.world.prisms, ends, r).min(initial=np.inf))
-    clearance = max(required.clearance, min(m.clearance + CURVE_SLACK, have))
+    clearance = max(required.clearance, min(need, have))
     d = np.linalg.norm(ends[:, None] - ends[None], axis=-1) - (r[:, None] + r[None, :])[..., None]  # (N, N, 2)
     d[np.arange(len(r)), np.arange(len(r))] = np.inf
-    separation = max(required.separation, min(m.separation + TIMING_SLACK, float(d.min(initial=np.inf)) - 1e-6))
+    separation = max(required.separation, min(d_s, float(d.min(initial=np.inf)) - 1e-6))
     return replace(scenario, costs=replace(scenario.costs, min_clearance=clearance, safe_distance=separation))
 
 

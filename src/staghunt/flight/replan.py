@@ -42,7 +42,7 @@ from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.flight import aside
 from staghunt.flight.config import FlyConfig
 from staghunt.flight.fallback import Fallback, stopping
-from staghunt.flight.known import (TIMING_SLACK, Acceptance, KnownWorld, Start, covers, sub_scenario, swept_obstacles,
+from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_margins, sub_scenario, swept_obstacles,
                                    to_xyh, warm_plan)
 from staghunt.flight.records import ReplanStatus, Solved
 from staghunt.safety.measure import static_clearance
@@ -414,14 +414,11 @@ class Replanner:
         sideways, not come closer (the solver's plans lie on their constraints: relaxed to a share
         of it, they came closer than the UAV's own reflex lets a reference come, it held, and
         re-planned from there closer still: scenario2 episode 67 of benchmarks/replan.py)."""
-        from staghunt.flight.known import CURVE_SLACK
-
-        m = self.acceptance.margins
         sub = sub_scenario(self.scenario, starts, cyl, prm, goals)
         more_c, more_p = swept_obstacles(sub, self.dyn, windows)
         sub = sub_scenario(self.scenario, starts, cyl + more_c, prm + more_p, goals)
-        need = m.clearance + CURVE_SLACK
-        sub = replace(sub, costs=replace(sub.costs, safe_distance=m.separation + TIMING_SLACK, min_clearance=need))
+        need, d_s = game_margins(self.acceptance.margins)
+        sub = replace(sub, costs=replace(sub.costs, safe_distance=d_s, min_clearance=need))
         at = to_absolute(sub.world.terrain, starts[:, None])
         r = np.array([u.radius for u in sub.team])
         have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
