@@ -25,6 +25,7 @@ from typing import Callable
 import numpy as np
 
 from staghunt.costs import CostEngine, CostModel
+from staghunt.solvers.dominance import preference
 from staghunt.solvers.response import Certificate
 from staghunt.solvers.selection import Candidate, select
 from staghunt.solvers.team_search import team_refine
@@ -56,7 +57,8 @@ def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate,
 
 
 def _logs(J: np.ndarray) -> float:
-    return float(np.sum(np.log(np.maximum(J, 1e-300))))
+    """``sum_n ln J_n`` of a feasible plan's costs ``(N,)`` (the selection's tie-break key)."""
+    return float(preference(J, np.float64(0.0))[0])
 
 
 def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[[np.ndarray], Certificate | None],

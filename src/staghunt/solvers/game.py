@@ -45,6 +45,7 @@ import numpy as np
 from staghunt.costs import CostEngine, CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
+from staghunt.solvers.dominance import dominates
 from staghunt.solvers.finish import finish
 from staghunt.solvers.independent import solo_model
 from staghunt.solvers.local import (  # noqa: F401  (formation_target, polish: re-exported)
@@ -334,15 +335,15 @@ def solve_game(run: MethodRun) -> SolverOutput:
     def certificate(plan: np.ndarray, searched: tuple[LocalSearch, ...] = ()) -> Certificate | None:
         return run.certify(plan, searched=searched) if run.certify is not None else None
 
-    def needed(plan: np.ndarray) -> bool:
-        """Whether a certificate of the feasible ``plan`` can matter: not if a certified candidate
-        Pareto-dominates it (then it is neither selected nor needed to judge payoff dominance)."""
-        J = evaluate(model, plan[None]).total[0]
-        return not any(c.certified and bool(np.all(c.J <= J)) and bool(np.any(c.J < J)) for c in candidates)
+    def needed(J: np.ndarray) -> bool:
+        """Whether a certificate of a feasible plan with costs ``J`` ``(N,)`` can matter: not if a
+        certified candidate Pareto-dominates it (then it is neither selected nor needed to judge
+        payoff dominance)."""
+        return not any(c.certified and bool(dominates(c.J, 0.0, J, 0.0)) for c in candidates)
 
     # A single start keeps its stopping rule (the run's); several stop at their first certified plan.
     explore_stop = run.certified if S == 1 else (
-        (lambda wp, searched=(): needed(wp) and certificate(wp, searched).is_equilibrium)
+        (lambda wp, searched=(): needed(evaluate(model, wp[None]).total[0]) and certificate(wp, searched).is_equilibrium)
         if run.certify is not None else None)
     # stop="certified" (run.certified): the run itself ends at its first certified equilibrium,
     # with the starts after it left unsearched.
@@ -374,7 +375,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
             # The start itself may already be an equilibrium (the rigid plan often is): a candidate
             # of its own, whatever equilibrium the rounds then reach from it.
             c = evaluate(model, start[None])
-            cert = certificate(start) if c.total_violation[0] == 0 and needed(start) else None
+            cert = certificate(start) if c.total_violation[0] == 0 and needed(c.total[0]) else None
             if cert is not None and cert.is_equilibrium:
                 candidates.append(Candidate(kind + " (start)", start, c.total[0], 0.0, cert, spent - before))
                 if first_certified:
@@ -385,7 +386,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
                                    repair=kind != "rigid", certified=explore_stop, workers=run.workers)
         spent = out.evaluations
         c = evaluate(model, out.plan[None])
-        cert = certificate(out.plan) if c.total_violation[0] == 0 and needed(out.plan) else None
+        cert = certificate(out.plan) if c.total_violation[0] == 0 and needed(c.total[0]) else None
         candidates.append(Candidate(kind, out.plan, c.total[0], float(c.total_violation[0]), cert, spent - before))
         starts.append({"start": kind, "rounds": out.rounds, "accepted_replies": out.accepted,
                        "converged": out.converged, "evaluations": int(spent - before)})

@@ -223,7 +223,7 @@ def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np
         # a UAV that stays put on a leg (its team-mates fly it) has no direction there, so no
         # turn: counted as one (a right angle of radius 0), it capped the team at a crawl
         moving = (length[:, :-1] > 0.0) & (length[:, 1:] > 0.0)
-        angle = np.where(moving & np.isfinite(cos), np.arccos(cos), 0.0)
+        angle = np.where(moving, np.arccos(cos), 0.0)
         rho = 0.5 * (length[:, :-1] + length[:, 1:]) / angle
     turn_cap = np.sqrt(a_t * np.where(angle > 1e-6, rho, np.inf)).min(axis=0)
     cap[1:-1] = np.minimum(cap[1:-1], turn_cap)
