@@ -11,10 +11,11 @@ from staghunt import plan
 from staghunt.costs import CostModel, evaluate
 from staghunt.engine import get_engine
 from staghunt.scenario import load_scenario
+from staghunt.solvers import finish as finish_module, game as game_module
 from staghunt.solvers.finish import adopt_replies
 from staghunt.solvers.response import Certificate, CertifyOptions, UAVGap
 from staghunt.solvers.rigid import formation_offsets
-from staghunt.solvers.team_search import shift_moves, team_polish, team_shift
+from staghunt.solvers.team_search import shift_moves, team_polish, team_powell, team_refine, team_shift
 
 
 @pytest.fixture(scope="module")
@@ -62,6 +63,29 @@ def test_team_shift_goes_below_the_polish_and_keeps_the_formation(case):
     assert team_shift(model, wiggled, model.n_uavs * len(shift_moves(wiggled.shape[1])), engine) == (wiggled, 0)
 
 
+def test_team_powell_goes_below_the_pattern_searches_without_making_any_uav_worse():
+    """Scenario 1's rigid plan (200 particles x 100 iterations, seed 2) after slide, polish and
+    block shifts: followers at 203.8, above the family's lower edge of 202. Powell's descent
+    lowers every UAV's cost (the followers' by more than 0.5 %); it is deterministic, keeps within
+    its budget and returns the plan itself when it cannot move."""
+    scenario = load_scenario("scenario1")
+    model = CostModel.from_scenario(scenario)
+    engine = get_engine("numba", threads=1)
+    rigid = plan(scenario, "rigid", 2, scenario.solver.with_(particles=200, iterations=100), engine="numba",
+                 certify=None)
+    refined, _ = team_refine(model, rigid.waypoints, 200_000, 1_000_000, engine)
+    Jr = evaluate(model, refined[None]).total[0]
+    descended, spent = team_powell(model, refined, 30_000, engine)
+    Jd = evaluate(model, descended[None]).total[0]
+    assert evaluate(model, descended[None]).total_violation[0] == 0
+    assert np.all(Jd < Jr) and np.all(Jd[1:] < 0.995 * Jr[1:])  # every UAV better, none worse
+    assert 0 < spent <= 30_000 and spent % model.n_uavs == 0
+    again, spent_again = team_powell(model, refined, 30_000, engine)
+    assert np.array_equal(again, descended) and spent_again == spent
+    # Too small a budget to evaluate anything but the plan: nothing moves.
+    assert team_powell(model, refined, model.n_uavs, engine) == (refined, 0)
+
+
 def _certificate(J: np.ndarray, gaps: list[float], deviations: list[np.ndarray | None]) -> Certificate:
     uavs = tuple(UAVGap(f"U{n}", float(J[n]), float(J[n]) * (1 - g), float(J[n]) * g, g, d, 0.0, 1)
                  for n, (g, d) in enumerate(zip(gaps, deviations)))
@@ -104,10 +128,13 @@ def test_a_plan_that_a_certified_candidate_dominates_is_not_certified():
     assert skipped >= 1, "the case should have a dominated candidate (seed 25: the independent and random starts)"
 
 
-def test_the_plan_that_failed_its_certificate_is_repaired_into_an_equilibrium():
-    """Scenario 1 at 200 x 100, four starts, seed 1: no start ends certified, nor the polished
-    selection; with its better replies adopted and a team refine, the polished plan passes, and
-    it is the selected plan ("weighted (polished) (repaired)")."""
+def test_the_plan_that_failed_its_certificate_is_repaired_into_an_equilibrium(monkeypatch):
+    """Scenario 1 at 200 x 100, four starts, seed 1, without the Powell descent (with it, the
+    polished selection of seeds 1-39 passes its certificate and nothing needs repair): no start
+    ends certified, nor the polished selection; with its better replies adopted and a team
+    refine, the polished plan passes, and it is the selected plan ("weighted (polished) (repaired)")."""
+    monkeypatch.setattr(finish_module, "POWELL_PLANS", 0)
+    monkeypatch.setattr(game_module, "POWELL_PLANS", 0)
     scenario = load_scenario("scenario1")
     settings = scenario.solver.with_(particles=200, iterations=100, starts=4)
     r = plan(scenario, "game", 1, settings, engine="numba", certify=CertifyOptions(particles=60, iterations=30))

@@ -4,7 +4,8 @@ had it passed its certificate, repaired from what its certificate found.
 
 1. **Polish.** The selected equilibrium gets a team refine
    (:func:`~staghunt.solvers.team_search.team_refine`: slide, polish and block shifts, no UAV
-   worse off); the result is one more candidate, certified (it dominates the one it came from).
+   worse off), then a Powell descent (:func:`~staghunt.solvers.team_search.team_powell`, at most
+   :data:`POWELL_PLANS` plans); the result is one more candidate, certified (it dominates the one it came from).
 2. **Repair.** The candidate the selection would prefer to the one it has, the feasible plan
    with the least ``sum_n ln J_n`` below the selected one's (any, if no candidate is certified)
    that has failed its certificate (often the polished plan of step 1: lower on the family, but
@@ -28,9 +29,12 @@ from staghunt.costs import CostEngine, CostModel
 from staghunt.solvers.dominance import preference
 from staghunt.solvers.response import Certificate
 from staghunt.solvers.selection import Candidate, select
-from staghunt.solvers.team_search import team_refine
+from staghunt.solvers.team_search import team_powell, team_refine
 
 REPAIR_ROUNDS = 2
+POWELL_PLANS = 10_000
+"""Most plans the Powell descent of the selected plan evaluates (:func:`team_powell`, ``N`` path
+evaluations each); within the run's budget."""
 """Most certificates of the repair (each after adopting the last one's better replies)."""
 
 
@@ -78,6 +82,8 @@ def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[
 
     polished, used = team_refine(model, chosen.plan, each, left, engine)
     spent += used
+    polished, more = team_powell(model, polished, min(POWELL_PLANS * chosen.plan.shape[0], left - spent), engine)
+    spent, used = spent + more, used + more
     if polished is not chosen.plan:
         add(chosen.start + " (polished)", polished, certificate(polished), used)
     chosen = candidates[select(candidates, epsilon).chosen]

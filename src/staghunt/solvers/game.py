@@ -46,7 +46,7 @@ from staghunt.costs import CostEngine, CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.dominance import dominates
-from staghunt.solvers.finish import finish
+from staghunt.solvers.finish import POWELL_PLANS, finish
 from staghunt.solvers.independent import solo_model
 from staghunt.solvers.local import (  # noqa: F401  (formation_target, polish: re-exported)
     ACCEPT_TOL, LocalSearch, formation_target, local_pass, polish,
@@ -94,6 +94,10 @@ times as many iterations (shorter runs, measured nowhere, keep :data:`SEED_SHARE
 route it finds is where the selected equilibrium usually lies, and with :data:`SEED_SHARE` alone
 a small run's seed (30 iterations at 500 x 300) ends on the right corridor but far above its
 best route, or on a worse corridor."""
+FINISH_SHARE = 0.01
+"""Most of the budget a search with several starts keeps for the finish's Powell descent (at most
+:data:`~staghunt.solvers.finish.POWELL_PLANS` plans): the starts' rounds otherwise spend it all
+(scenario 1 at 500 x 300: 195 evaluations left for the finish)."""
 TEAM_POLISH_SHARE = 0.02
 """Most of the budget one :func:`team_polish` (or :func:`team_slide`) may spend (it usually needs far less)."""
 
@@ -351,9 +355,11 @@ def solve_game(run: MethodRun) -> SolverOutput:
     spent = 0
     candidates: list[Candidate] = []
     starts: list[dict[str, Any]] = []
+    # Several starts keep the finish's Powell descent its evaluations (solvers/finish.py).
+    reserve = min(POWELL_PLANS * N, int(FINISH_SHARE * budget)) if S > 1 else 0
     for s in range(S):
         kind = _start_kind(s)
-        cap = spent + (budget - spent) // (S - s) + (extra if s == 0 else 0)
+        cap = spent + (budget - reserve - spent) // (S - s) + (extra if s == 0 else 0)
         before = spent
         seed_progress = _Rows(progress, I) if progress is not None and s == 0 else None
         best = candidates[select(candidates, EPSILON).chosen].plan if candidates else None
