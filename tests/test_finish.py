@@ -11,10 +11,10 @@ from staghunt import plan
 from staghunt.costs import CostModel, evaluate
 from staghunt.engine import get_engine
 from staghunt.scenario import load_scenario
-from staghunt.solvers import finish as finish_module, game as game_module
-from staghunt.solvers.finish import adopt_replies
+from staghunt.solvers.finish import POWELL_PLANS, adopt_replies, finish
 from staghunt.solvers.response import Certificate, CertifyOptions, UAVGap
 from staghunt.solvers.rigid import formation_offsets
+from staghunt.solvers.selection import Candidate
 from staghunt.solvers.team_search import shift_moves, team_polish, team_powell, team_refine, team_shift
 
 
@@ -86,6 +86,27 @@ def test_team_powell_goes_below_the_pattern_searches_without_making_any_uav_wors
     assert team_powell(model, refined, model.n_uavs, engine) == (refined, 0)
 
 
+def test_the_finish_makes_the_powell_descent_only_with_twice_its_plans_left():
+    """The finish polishes the selected plan by team refine and, if at least twice
+    :data:`POWELL_PLANS` plans are left of the run's budget, by Powell's descent of its route."""
+    scenario = load_scenario("scenario1")
+    model = CostModel.from_scenario(scenario)
+    engine = get_engine("numba", threads=1)
+    rigid = plan(scenario, "rigid", 2, scenario.solver.with_(particles=200, iterations=100), engine="numba",
+                 certify=None)
+    J = evaluate(model, rigid.waypoints[None]).total[0]
+    powell = POWELL_PLANS * model.n_uavs
+    ends = {}
+    for left in (2 * powell - 1, 2 * powell):
+        candidates = [Candidate("rigid", rigid.waypoints, J, 0.0, None, 0)]
+        spent = finish(model, candidates, lambda _: None, engine, 200_000, left, 0.01)
+        assert len(candidates) == 2 and candidates[1].start == "rigid (polished)" and spent <= left
+        ends[left] = candidates[1].J
+    refined, _ = team_refine(model, rigid.waypoints, 200_000, 2 * powell - 1, engine)
+    assert np.allclose(ends[2 * powell - 1], evaluate(model, refined[None]).total[0], rtol=1e-12)  # no Powell
+    assert np.all(ends[2 * powell] < ends[2 * powell - 1])  # with it, every UAV lower
+
+
 def _certificate(J: np.ndarray, gaps: list[float], deviations: list[np.ndarray | None]) -> Certificate:
     uavs = tuple(UAVGap(f"U{n}", float(J[n]), float(J[n]) * (1 - g), float(J[n]) * g, g, d, 0.0, 1)
                  for n, (g, d) in enumerate(zip(gaps, deviations)))
@@ -128,13 +149,10 @@ def test_a_plan_that_a_certified_candidate_dominates_is_not_certified():
     assert skipped >= 1, "the case should have a dominated candidate (seed 25: the independent and random starts)"
 
 
-def test_the_plan_that_failed_its_certificate_is_repaired_into_an_equilibrium(monkeypatch):
-    """Scenario 1 at 200 x 100, four starts, seed 1, without the Powell descent (with it, the
-    polished selection of seeds 1-39 passes its certificate and nothing needs repair): no start
-    ends certified, nor the polished selection; with its better replies adopted and a team
-    refine, the polished plan passes, and it is the selected plan ("weighted (polished) (repaired)")."""
-    monkeypatch.setattr(finish_module, "POWELL_PLANS", 0)
-    monkeypatch.setattr(game_module, "POWELL_PLANS", 0)
+def test_the_plan_that_failed_its_certificate_is_repaired_into_an_equilibrium():
+    """Scenario 1 at 200 x 100, four starts, seed 1: no start ends certified, nor the polished
+    selection; with its better replies adopted and a team refine, the polished plan passes, and
+    it is the selected plan ("weighted (polished) (repaired)")."""
     scenario = load_scenario("scenario1")
     settings = scenario.solver.with_(particles=200, iterations=100, starts=4)
     r = plan(scenario, "game", 1, settings, engine="numba", certify=CertifyOptions(particles=60, iterations=30))

@@ -4,8 +4,9 @@ had it passed its certificate, repaired from what its certificate found.
 
 1. **Polish.** The selected equilibrium gets a team refine
    (:func:`~staghunt.solvers.team_search.team_refine`: slide, polish and block shifts, no UAV
-   worse off), then a Powell descent (:func:`~staghunt.solvers.team_search.team_powell`, at most
-   :data:`POWELL_PLANS` plans); the result is one more candidate, certified (it dominates the one it came from).
+   worse off), then, in a run large enough, a Powell descent of the team's route
+   (:func:`~staghunt.solvers.team_search.team_powell`, :data:`POWELL_PLANS` plans); the result
+   is one more candidate, certified (it dominates the one it came from).
 2. **Repair.** The candidate the selection would prefer to the one it has, the feasible plan
    with the least ``sum_n ln J_n`` below the selected one's (any, if no candidate is certified)
    that has failed its certificate (often the polished plan of step 1: lower on the family, but
@@ -33,8 +34,10 @@ from staghunt.solvers.team_search import team_powell, team_refine
 
 REPAIR_ROUNDS = 2
 POWELL_PLANS = 10_000
-"""Most plans the Powell descent of the selected plan evaluates (:func:`team_powell`, ``N`` path
-evaluations each); within the run's budget."""
+"""Plans the Powell descent of the selected plan may evaluate (:func:`team_powell`, ``N`` path
+evaluations each): it runs only if the finish has at least twice that left of the run's budget
+(the rest is the repair's), so in runs of at least ``2 * POWELL_PLANS / FINISH_SHARE`` team
+evaluations (:data:`staghunt.solvers.game.FINISH_SHARE`; the paper's budget, not 500 x 300)."""
 """Most certificates of the repair (each after adopting the last one's better replies)."""
 
 
@@ -82,8 +85,10 @@ def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[
 
     polished, used = team_refine(model, chosen.plan, each, left, engine)
     spent += used
-    polished, more = team_powell(model, polished, min(POWELL_PLANS * chosen.plan.shape[0], left - spent), engine)
-    spent, used = spent + more, used + more
+    powell = POWELL_PLANS * chosen.plan.shape[0]
+    if left - spent >= 2 * powell:
+        polished, more = team_powell(model, polished, powell, engine)
+        spent, used = spent + more, used + more
     if polished is not chosen.plan:
         add(chosen.start + " (polished)", polished, certificate(polished), used)
     chosen = candidates[select(candidates, epsilon).chosen]

@@ -95,9 +95,10 @@ route it finds is where the selected equilibrium usually lies, and with :data:`S
 a small run's seed (30 iterations at 500 x 300) ends on the right corridor but far above its
 best route, or on a worse corridor."""
 FINISH_SHARE = 0.01
-"""Most of the budget a search with several starts keeps for the finish's Powell descent (at most
-:data:`~staghunt.solvers.finish.POWELL_PLANS` plans): the starts' rounds otherwise spend it all
-(scenario 1 at 500 x 300: 195 evaluations left for the finish)."""
+"""Share of the budget a search with several starts keeps for its finish
+(:func:`~staghunt.solvers.finish.finish`) if that covers twice the Powell descent's
+:data:`~staghunt.solvers.finish.POWELL_PLANS` plans (else nothing is kept): the starts' rounds
+otherwise spend it all."""
 TEAM_POLISH_SHARE = 0.02
 """Most of the budget one :func:`team_polish` (or :func:`team_slide`) may spend (it usually needs far less)."""
 
@@ -355,8 +356,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
     spent = 0
     candidates: list[Candidate] = []
     starts: list[dict[str, Any]] = []
-    # Several starts keep the finish's Powell descent its evaluations (solvers/finish.py).
-    reserve = min(POWELL_PLANS * N, int(FINISH_SHARE * budget)) if S > 1 else 0
+    # Several starts keep the finish its evaluations where it can make the Powell descent (solvers/finish.py).
+    reserve = int(FINISH_SHARE * budget) if S > 1 and FINISH_SHARE * budget >= 2 * POWELL_PLANS * N else 0
     for s in range(S):
         kind = _start_kind(s)
         cap = spent + (budget - reserve - spent) // (S - s) + (extra if s == 0 else 0)
