@@ -168,6 +168,32 @@ def test_a_missed_plan_or_silence_makes_the_uav_hold_and_the_station_rebuilds_th
     assert braked.brake and not gentle.brake and braked.duration < gentle.duration / 2
 
 
+def test_holds_and_stops_of_a_team_at_rest_do_not_nest_however_many():
+    """A UAV that holds again and again while it hovers, and a team whose re-plans keep opening
+    with a stop of the team as the station believes it: every stop used to wrap the whole track
+    once more, and after some hundreds of them evaluating the track hit Python's recursion
+    limit (a hovering team retrying for minutes)."""
+    from staghunt.trajectory.quintic import stop_piece
+    from staghunt.trajectory.team import RowTeam
+
+    ref = _plan()
+    track = Track(((0.0, ref, 0),))
+    track = track.then(2.0, hold_piece(track, 2.0, LIMITS, HoldReason.MISSED), 0)
+    first = track.segments[-1][1]
+    for k in range(2000):  # holds while braking and while at rest keep the first hold's stop
+        t = 2.0 + 0.01 * k
+        track = track.then(t, hold_piece(track, t, LIMITS, HoldReason.REFLEX), 0)
+        assert track.segments[-1][1] is first
+    rest = first.state(np.array([30.0]))[0][:, 0]
+    team = RowTeam((track,), (0,))
+    for k in range(2000):  # the station's stops of the team, one per re-plan, at rest
+        t = 30.0 + 0.1 * k
+        track = track.then(t, Reference((stop_piece(team, t, LIMITS),)), 0)
+        team = RowTeam((track,), (0,))
+    s = team.state(np.array([30.0, 100.0, 229.95, 500.0]))
+    assert np.allclose(s[0][:, :], rest[:, None], atol=1e-12) and np.all(s[1:] == 0.0)
+
+
 def test_the_reflex_brakes_before_a_seen_obstacle_unless_the_coming_plan_avoids_it():
     ref = _plan()
     uav = _onboard(ref)

@@ -63,7 +63,14 @@ def hold_piece(track: Track, t: float, limits: VehicleLimits, reason: HoldReason
     """The stop a UAV makes on its own from ``t`` along ``track``: at ``max_acceleration`` when
     it heard nothing, or braking at :data:`REFLEX_FACTOR` times it (the reflex; a missed plan,
     whose old one may lead into what the new one avoids). The ground station rebuilds the
-    same stop from the UAV's telemetry."""
+    same stop from the UAV's telemetry. A UAV already stopping on its own (the segment it flies
+    at ``t`` is an earlier hold, or a one-UAV plan, in its stop) keeps that stop: a stop of the
+    stop would wrap the whole track once more for every further hold, and evaluating it would
+    recurse as deep as the holds go (a team hovering through many re-plans hit Python's
+    recursion limit)."""
+    _, flown, _ = track.segment_at(t)
+    if isinstance(flown, Reference) and flown.n_uavs == 1 and flown.piece_at(t).kind == "stop":
+        return flown
     brake = reason is not HoldReason.TIMEOUT
     lim = replace(limits, max_acceleration=REFLEX_FACTOR * limits.max_acceleration) if brake else limits
     return Reference((stop_piece(track, t, lim, brake=brake),))

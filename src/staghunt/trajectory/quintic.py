@@ -41,7 +41,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from staghunt.task import VehicleLimits
-from staghunt.trajectory.team import TeamTrajectory, end_time
+from staghunt.trajectory.team import Still, TeamTrajectory, end_time
 from staghunt.trajectory.timing import merge_waypoints, split_legs
 
 CHECK_STEP_S = 0.02
@@ -53,6 +53,9 @@ MARGIN = 0.98
 """Peaks are kept below this share of the limits (the grid may miss a peak between samples)."""
 CACHED = 8
 """Answers of :meth:`Piece.state` kept per piece."""
+REST_TOL = 1e-9
+"""A trajectory moving less than this (m, m/s) over a stop's reach is at rest: its stop is of a
+:class:`~staghunt.trajectory.team.Still` team (:func:`stop_piece`)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -398,6 +401,10 @@ def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bo
     t = np.linspace(t_s, max(reach, t_s), max(2, math.ceil((reach - t_s) / CHECK_STEP_S) + 1))
     s = base.state(t)
     v = float(np.linalg.norm(s[1], axis=-1).max())
+    if not isinstance(base, Piece) and v < REST_TOL and float(np.abs(s[0] - s[0][:, :1]).max()) < REST_TOL:
+        # at rest all the way: the stop of a still team, not of the history that brought it there
+        # (a stop of a stop of ... wraps every earlier one, and evaluating it recurses as deep)
+        base = Still(s[0][:, 0].copy(), t_s)
     T = max(0.5, peak * v / (MARGIN * limits.max_acceleration))
     if isinstance(base, Piece):
         knots, points = base.knots, base.points

@@ -120,3 +120,25 @@ class Track:
             _, traj, row = self.segments[i]
             out[:, :, sel] = traj.state(t[sel])[:, row:row + 1]
         return out
+
+
+@dataclass(frozen=True, eq=False)
+class Still:
+    """A team at rest at ``positions`` ``(N, 3)`` from ``t0`` on (and before it)."""
+
+    positions: np.ndarray
+    t0: float
+
+    @property
+    def n_uavs(self) -> int:
+        return int(self.positions.shape[0])
+
+    @property
+    def span(self) -> tuple[np.ndarray, np.ndarray]:
+        return np.full(self.n_uavs, self.t0), np.full(self.n_uavs, self.t0)
+
+    def state(self, t: np.ndarray) -> np.ndarray:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        out = np.zeros((4, self.n_uavs, len(t), 3))
+        out[0] = self.positions[:, None, :]
+        return out
