@@ -85,9 +85,9 @@ def test_a_replan_slower_than_its_deadline_flies_the_old_plan_meanwhile(calm):
     """The re-plan takes 0.5 s against a deadline of 0.2 s: its plan would start before it
     reached the UAVs, so it is dropped; the team flies the old plan until the re-plan's result
     leaves the station, then the fallback (a stop, the old plan leading into the pop-up); the
-    retry from the hover has four times the deadline and flies."""
+    retry from the hover, given four times the deadline here (``stop_budget_factor``), flies."""
     dyn, _ = _popup(calm)
-    r = fly(SMALL, events=dyn, seed=0, config=FlyConfig(latency=0.5, deadline=0.2, replan_rate=0))
+    r = fly(SMALL, events=dyn, seed=0, config=FlyConfig(latency=0.5, deadline=0.2, replan_rate=0, stop_budget_factor=4))
     rec = r.replans[0]
     assert rec.late and rec.effect_time == pytest.approx(rec.time + 0.5) and rec.deadline_s == 0.2
     assert rec.status in (ReplanStatus.STOP, ReplanStatus.EMERGENCY_STOP) and rec.switch_time >= rec.effect_time

@@ -56,7 +56,11 @@ class FlyConfig:
       the acceptance, up to ``deferrals`` times per event, instead of stopping at once.
     - ``stop_budget_factor``: after a stop to hover, the next re-plan gets this many times the
       budget and the deadline; ``retries_after_stop``, ``retry_interval``: re-plans tried while
-      hovering (then the goal is reported unreachable).
+      hovering (then the goal is reported unreachable), each going on from the best try of the
+      one before. The defaults give a hovering team the flight's deadline per re-plan and a
+      re-plan every half second, sixteen in all: as much search as four re-plans of four
+      times the deadline, two seconds apart (the defaults before), in slices that keep every
+      re-plan's latency within the deadline.
     - ``link``: the radio (delay, jitter, loss; ``None``: the scenario's or events file's
       ``[link]``); ``outages``: radio shadows, every message to or from a UAV lost for a while
       (:class:`~staghunt.flight.link.Outage`); ``plan_timeout``: a UAV that hears nothing from
@@ -89,9 +93,9 @@ class FlyConfig:
     window_pad: float = 3.0
     defer_stops: bool = True
     deferrals: int = 8
-    stop_budget_factor: int = 4
-    retries_after_stop: int = 3
-    retry_interval: float = 2.0
+    stop_budget_factor: int = 1
+    retries_after_stop: int = 15
+    retry_interval: float = 0.5
     link: Link | None = None
     outages: tuple[Outage, ...] = ()
     straggler_check: bool = True

@@ -194,6 +194,8 @@ class Replanner:
         used = tuple(sorted(set(chosen.windows)))
         if chosen.plan is None:
             problems = tuple(chosen.problems[:5])
+            if at_rest and first.out is not None:  # the next re-plan from the hover goes on from here
+                self.hint = first.out.plan
             if not fallback:
                 return Solved(None, ReplanStatus.KEPT, spent, tries, problems=problems, windows=used)
             moved = self.fallback.sidestep(base, t_s) if at_rest else None
