@@ -353,6 +353,38 @@ def test_a_stop_can_wait_while_the_team_can_still_brake_clear_of_what_it_knows()
     assert not fb.stop_later(ref, late, late + 0.3)
 
 
+def test_a_replan_from_the_hover_goes_on_from_the_last_ones_best_try():
+    """A hovering team's re-plans are short (the flight's deadline each): one that finds no plan
+    leaves its game's best try as the next one's warm start, so sixteen slices search on from
+    each other rather than sixteen times from the stop."""
+    from types import SimpleNamespace
+
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import _Attempt
+    from staghunt.trajectory.quintic import stop_piece
+
+    ref, station = _station_on_two_straight_paths()
+    planner = station.replanner
+    stopped = Reference((stop_piece(ref, 2.0, planner.scenario.vehicle),))
+    t_s = stopped.arrival + 1.0
+    s = stopped.state(np.array([t_s]))[:, :, 0]
+    start = Start(t_s, stopped, s[0], s[1], s[2])
+    warm_starts, tries = [], []
+
+    def attempts(start_, windows, warm, *args, **kwargs):
+        warm_starts.append(warm.copy())
+        best = warm + 0.5 * (len(warm_starts))  # the game's best try: somewhere new each time
+        tries.append(best)
+        return _Attempt(None, SimpleNamespace(plan=best), None, ["no feasible plan"], 1, 10, 0.0, [])
+
+    planner._attempts = attempts
+    for _ in range(3):
+        planner.solve(start, lambda: t_s, 1, [], None, 0.0, fallback=True)
+    assert len(warm_starts) == 3
+    assert np.array_equal(warm_starts[1], tries[0]) and np.array_equal(warm_starts[2], tries[1])
+    assert not np.array_equal(warm_starts[0], tries[0])
+
+
 def test_a_hovering_team_waits_for_a_known_motion_to_pass_before_it_gives_up():
     """After a stop, re-plans from the hover that fail while a known motion's window (solved
     around) is still to come do not count the goal as unreachable: the team retries until the
