@@ -33,12 +33,12 @@ from staghunt.solvers.selection import Candidate, select
 from staghunt.solvers.team_search import team_powell, team_refine
 
 REPAIR_ROUNDS = 2
+"""Most certificates of the repair (each after adopting the last one's better replies)."""
 POWELL_PLANS = 10_000
 """Plans the Powell descent of the selected plan may evaluate (:func:`team_powell`, ``N`` path
 evaluations each): it runs only if the finish has at least twice that left of the run's budget
 (the rest is the repair's), so in runs of at least ``2 * POWELL_PLANS / FINISH_SHARE`` team
 evaluations (:data:`staghunt.solvers.game.FINISH_SHARE`; the paper's budget, not 500 x 300)."""
-"""Most certificates of the repair (each after adopting the last one's better replies)."""
 
 
 def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate,
