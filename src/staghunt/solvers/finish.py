@@ -41,6 +41,12 @@ evaluations each): it runs only if the finish has at least twice that left of th
 evaluations (:data:`staghunt.solvers.game.FINISH_SHARE`; the paper's budget, not 500 x 300)."""
 
 
+def descent_fits(evaluations: int, n_uavs: int) -> bool:
+    """Whether ``evaluations`` left for the finish make room for the Powell descent of a team of
+    ``n_uavs``: twice its :data:`POWELL_PLANS` plans (the rest is the repair's)."""
+    return evaluations >= 2 * POWELL_PLANS * n_uavs
+
+
 def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate,
                   engine: CostEngine) -> tuple[np.ndarray | None, int]:
     """``plan`` ``(N, K, 3)`` with the better replies of its failed ``cert`` adopted in turn
@@ -85,9 +91,8 @@ def finish(model: CostModel, candidates: list[Candidate], certificate: Callable[
 
     polished, used = team_refine(model, chosen.plan, each, left, engine)
     spent += used
-    powell = POWELL_PLANS * chosen.plan.shape[0]
-    if left - spent >= 2 * powell:
-        polished, more = team_powell(model, polished, powell, engine)
+    if descent_fits(left - spent, model.n_uavs):
+        polished, more = team_powell(model, polished, POWELL_PLANS * model.n_uavs, engine)
         spent, used = spent + more, used + more
     if polished is not chosen.plan:
         add(chosen.start + " (polished)", polished, certificate(polished), used)

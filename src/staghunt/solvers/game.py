@@ -46,7 +46,7 @@ from staghunt.costs import CostEngine, CostModel, evaluate
 from staghunt.encoding import ANGLE_RANGE, encode
 from staghunt.solvers.base import MethodRun, SolverOutput, register
 from staghunt.solvers.dominance import dominates
-from staghunt.solvers.finish import POWELL_PLANS, finish
+from staghunt.solvers.finish import descent_fits, finish
 from staghunt.solvers.independent import solo_model
 from staghunt.solvers.local import (  # noqa: F401  (formation_target, polish: re-exported)
     ACCEPT_TOL, LocalSearch, formation_target, local_pass, polish,
@@ -357,7 +357,7 @@ def solve_game(run: MethodRun) -> SolverOutput:
     candidates: list[Candidate] = []
     starts: list[dict[str, Any]] = []
     # Several starts keep the finish its evaluations where it can make the Powell descent (solvers/finish.py).
-    reserve = int(FINISH_SHARE * budget) if S > 1 and FINISH_SHARE * budget >= 2 * POWELL_PLANS * N else 0
+    reserve = int(FINISH_SHARE * budget) if S > 1 and descent_fits(int(FINISH_SHARE * budget), N) else 0
     for s in range(S):
         kind = _start_kind(s)
         cap = spent + (budget - reserve - spent) // (S - s) + (extra if s == 0 else 0)

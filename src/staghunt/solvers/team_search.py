@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from staghunt.costs import NUMPY_COSTS, CostEngine, CostModel
+from staghunt.solvers.dominance import preference
 from staghunt.solvers.local import ACCEPT_TOL, POLISH_MIN_STEP, POLISH_STEP
 
 SLIDE_FRACTIONS = (0.4, 0.2, 0.1, 0.05, 0.025, 0.0125)
@@ -245,13 +246,10 @@ def team_powell(model: CostModel, plan: np.ndarray, max_evaluations: int,
     from scipy.optimize import minimize  # SciPy's optimiser loads only when a run polishes
 
     N, K = plan.shape[0], plan.shape[1]
-    if max_evaluations < 2 * N:
-        return plan, 0
-    J0 = engine.evaluate(model, plan[None])
-    if J0.total_violation[0] != 0:
-        return plan, N
-    J_start = J0.total[0]
-    state = {"spent": N, "best": plan, "key": float(np.sum(np.log(J_start)))}
+    J_start, spent = _team_search_start(model, plan, engine, max_evaluations, 1)
+    if J_start is None:
+        return plan, spent
+    state = {"spent": spent, "best": plan, "key": float(preference(J_start[None], np.zeros(1))[0][0])}
     lower, upper = np.broadcast_to(model.lower, plan.shape), np.broadcast_to(model.upper, plan.shape)
 
     class _Spent(Exception):
@@ -263,11 +261,10 @@ def team_powell(model: CostModel, plan: np.ndarray, max_evaluations: int,
         candidate = np.clip(plan + x.reshape(1, K, 3), lower, upper)
         c = engine.evaluate(model, candidate[None])
         state["spent"] += N
-        J = c.total[0]
-        if c.total_violation[0] != 0 or np.any(J > J_start) or np.any(J <= 0):
+        if c.total_violation[0] != 0 or np.any(c.total[0] > J_start):
             return 1e6 + float(c.total_violation[0])
-        key = float(np.sum(np.log(J)))
-        if key < state["key"] and np.any(J < J_start * (1.0 - ACCEPT_TOL)):
+        key = float(preference(c.total, c.total_violation)[0][0])
+        if key < state["key"] and _dominating(c, J_start)[0]:
             state.update(best=candidate, key=key)
         return key
 
