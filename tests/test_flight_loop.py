@@ -389,6 +389,33 @@ def test_hovering_team_sidesteps_a_known_motion():
     assert np.allclose(after - after[0], hover - hover[0])  # moved as one rigid formation
 
 
+def test_a_sidestep_is_sought_only_out_of_a_known_motions_way_and_only_until_the_deadline(monkeypatch):
+    """A hover that only something sensed threatens (a pop-up at a UAV: no known motion's
+    window) gets no sidestep after one check (it scanned 64 spots before, each failing from its
+    first instant: 90-170 ms of a 200 ms deadline in benchmarks/replan.py's scenario-2 episodes
+    43 and 90); nor does a truck's way once the re-plan's deadline has passed."""
+    import time
+
+    from staghunt.engine import get_engine
+    from staghunt.flight.replan import Replanner
+    from staghunt.solvers.improve import Deadline
+
+    sc, ref, hover, dyn = _hovering_in_a_trucks_way()
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, FIXED, get_engine("numpy"), np.random.default_rng(0))
+    assert rp.fallback.sidestep(ref, 8.0) is not None
+    assert rp.fallback.sidestep(ref, 8.0, Deadline(time.perf_counter() - 1.0)) is None  # no time left for one
+    late = Dynamics(moving=(replace(dyn.moving[0], start_time=100.0),))  # the truck comes past the horizon
+    rp = Replanner(replace(sc, dynamics=late), late, FIXED, get_engine("numpy"), np.random.default_rng(0))
+    rp.known.sensed["popup"] = Cylinder(float(hover[0, 0]), float(hover[0, 1]), 1.0, "popup")
+    verdict = rp.acceptance.check(ref, 8.0, 18.0)
+    assert verdict.contact and not verdict.windows
+    checks = []
+    check = type(rp.acceptance).check
+    monkeypatch.setattr(type(rp.acceptance), "check", lambda *a, **k: checks.append(1) or check(*a, **k))
+    assert rp.fallback.sidestep(ref, 8.0) is None
+    assert len(checks) == 1
+
+
 def test_a_failed_replan_does_not_cut_short_a_sidestep_that_keeps_clear():
     """A team hovering in a truck's way sidesteps; a re-plan made while it moves finds no plan (the
     goals are closed off). The fallback keeps the sidestep (it stays clear over the horizon): a

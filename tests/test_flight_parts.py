@@ -385,6 +385,43 @@ def test_a_replan_from_the_hover_goes_on_from_the_last_ones_best_try():
     assert not np.array_equal(warm_starts[0], tries[0])
 
 
+def test_the_plan_from_rest_leaves_the_fallbacks_running_time_free_at_the_deadlines_end():
+    """A re-plan of a moving team that finds no plan, from where it flies or from rest, falls back
+    (a stop, or flying on) after the plan from rest has had its share of the deadline: that share ends
+    early enough for the fallback's running estimate (up to half the deadline), so a slow
+    fallback does not carry the re-plan past its deadline (benchmarks/replan.py: every
+    scenario-2 re-plan over 300 ms ended in a stop)."""
+    from types import SimpleNamespace
+
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import FALLBACK_DECAY, REST_SHARE, _Attempt
+    from staghunt.solvers.improve import Deadline
+
+    ref, station = _station_on_two_straight_paths()
+    planner = station.replanner
+    t_s = 1.0
+    s = ref.state(np.array([t_s]))[:, :, 0]
+    start = Start(t_s, ref, s[0], s[1], s[2])
+    ends = []
+
+    def attempts(start_, windows, warm, *args, stop_retrying=None, **kwargs):
+        assert stop_retrying is not None and not stop_retrying()  # asks for the plan from rest
+        return _Attempt(None, SimpleNamespace(plan=warm), None, ["no feasible plan"], 1, 10, 0.0, [])
+
+    def from_rest(base, soon, t_s_, windows, settings, rng, end, *, engine, cancel=None):
+        ends.append(end)
+        return None, None
+
+    planner._attempts, planner.from_rest = attempts, from_rest
+    for estimate, free in ((0.0, (1 - REST_SHARE) * 0.2), (0.08, 0.08), (0.5, 0.1)):
+        planner.fallback_s = estimate
+        deadline = Deadline.after(0.2)
+        out = planner.solve(start, lambda: t_s, 1, [], deadline, 0.0, fallback=True)
+        assert out.plan is None and out.status.value == "kept"  # the straight paths stay clear: flown on
+        assert deadline.end - ends[-1] == pytest.approx(free, abs=0.01)
+        assert planner.fallback_s >= FALLBACK_DECAY * estimate
+
+
 def test_a_hovering_team_waits_for_a_known_motion_to_pass_before_it_gives_up():
     """After a stop, re-plans from the hover that fail while a known motion's window (solved
     around) is still to come do not count the goal as unreachable: the team retries until the

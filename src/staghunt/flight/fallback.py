@@ -12,12 +12,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
 from staghunt.flight.known import Acceptance
 from staghunt.flight.records import ReplanStatus
 from staghunt.safety.measure import static_clearance
+from staghunt.solvers.improve import Deadline
 from staghunt.trajectory.quintic import Piece, Reference, stop_piece, timed_path
 from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track
 
@@ -65,6 +67,21 @@ class Fallback:
 
     acceptance: Acceptance
     horizon: float
+
+    def when_none_passes(self, base: TeamTrajectory, t_s: float, t_soon: Callable[[], float], at_rest: bool,
+                         deadline: Deadline | None = None) -> tuple[Reference | None, ReplanStatus]:
+        """What the team flies when a re-plan switching at ``t_s`` finds no plan: a hovering
+        (``at_rest``) team's :meth:`sidestep` (sought until ``deadline``); else the current plan
+        (``None``, kept) if it stays clear over the horizon from ``t_soon()`` (the earliest a
+        stop decided now reaches the UAVs): a stop would only cut a sidestep under way short,
+        perhaps where a known motion will pass; else a :meth:`stop`."""
+        moved = self.sidestep(base, t_s, deadline) if at_rest else None
+        if moved is not None:
+            return moved, ReplanStatus.SIDESTEP
+        soon = t_soon()
+        if self.acceptance.check(base, soon, max(t_s, soon) + self.horizon).safe:
+            return None, ReplanStatus.KEPT
+        return self.stop(base, soon, max(t_s, soon))
 
     def stop(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Reference, ReplanStatus]:
         """A synchronised stop at ``t_s`` within ``max_acceleration``; if that stop would come
@@ -118,14 +135,20 @@ class Fallback:
         assert best is not None
         return best[0], best[1]
 
-    def sidestep(self, base: TeamTrajectory, t_s: float) -> Reference | None:
+    def sidestep(self, base: TeamTrajectory, t_s: float, deadline: Deadline | None = None) -> Reference | None:
         """A team hovering where a known motion will pass: move the whole formation (one rigid
         offset, so separations hold) to the nearest spot that stays clear for the horizon,
         trying 16 headings and offsets of 1 to 4 times the largest moving radius plus body and
-        clearance. ``None`` when the hover is not threatened or no spot is clear."""
+        clearance, until ``deadline`` (wall clock; ``None``: every spot). ``None`` when no known
+        motion threatens the hover (it is safe, or only something fixed or sensed breaks its
+        margins: a rigid offset sized for a moving obstacle is not the way out of that) or no
+        spot is clear."""
         acc, sc = self.acceptance, self.acceptance.scenario
         dyn = acc.dyn
-        if not dyn.known_motion or acc.check(base, t_s, t_s + self.horizon).safe:
+        if not dyn.known_motion:
+            return None
+        hover = acc.check(base, t_s, t_s + self.horizon)
+        if hover.safe or not hover.windows:
             return None
         t0 = rest_time(base, t_s)
         here = base.state(np.array([t0]))[0][:, 0]  # (N, 3) where the team rests
@@ -138,6 +161,8 @@ class Fallback:
                 if (there[:, 0].min() < b.xmin or there[:, 0].max() > b.xmax
                         or there[:, 1].min() < b.ymin or there[:, 1].max() > b.ymax):
                     continue
+                if deadline is not None and deadline.passed:
+                    return None
                 plan = Reference((timed_path(np.stack([here, there], axis=1), t0, sc.vehicle),))
                 if acc.check(plan, t0, plan.arrival + self.horizon).safe:
                     return plan

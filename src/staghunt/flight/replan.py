@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
@@ -70,7 +71,14 @@ says would end in it."""
 CERTIFICATE_PRIOR = 0.25
 """A flight's first estimate of a certificate's wall time, as a share of the deadline."""
 REST_SHARE = 0.85
-"""Share of the deadline the plan from rest may take when it is solved after the moving one."""
+"""Share of the deadline the plan from rest may take when it is solved after the moving one, at
+most: it also leaves the fallback's running estimate free (:attr:`Replanner.fallback_s`, up to
+:data:`FALLBACK_SHARE` of the deadline)."""
+FALLBACK_SHARE = 0.5
+"""Share of the deadline the fallback's running estimate may keep from the plan from rest."""
+FALLBACK_DECAY = 0.8
+"""A fallback's wall time enters its running estimate at once if longer; the estimate decays
+by this factor with every fallback that is shorter."""
 TAIL_STEP_S = 0.5
 """Seconds between the points a receding-horizon re-plan keeps of the current plan beyond its
 horizon."""
@@ -114,6 +122,7 @@ class Replanner:
         self.acceptance = Acceptance(scenario, self.known, dyn, config.allowance)
         self.fallback = Fallback(self.acceptance, config.conflict_horizon)
         self.certificate_s = 0.0  # running estimate of a certificate's wall time
+        self.fallback_s = 0.0  # running estimate of the fallback's wall time (its stops' and sidestep's checks)
         # how long a UAV that missed a plan flies on before a heartbeat tells it (a tick and the
         # link's worst delay; the station sets it)
         self.learn_s = 1.0 / dyn.sensing.rate + (config.link or dyn.link).worst_delay
@@ -158,8 +167,9 @@ class Replanner:
                                   WIDE_AZIMUTH if at_rest else ANGLE_RANGE, moving_rng, engine, game, lead,
                                   stop_retrying=rest_passes, until=until)
 
+        keep_free = max((1 - REST_SHARE) * full, min(self.fallback_s, FALLBACK_SHARE * full))
         rest_args = (base, t_soon(), t_s, windows, settings, rest_rng,
-                     None if deadline.end is None else deadline.end - (1 - REST_SHARE) * full)
+                     None if deadline.end is None else deadline.end - keep_free)
         second: tuple[_Attempt | None, Any] | None = None
         # a stop that can wait for the next re-plan: no plan from rest now, the moving solve has
         # every core and every attempt the deadline allows
@@ -198,15 +208,9 @@ class Replanner:
                 self.hint = first.out.plan
             if not fallback:
                 return Solved(None, ReplanStatus.KEPT, spent, tries, problems=problems, windows=used)
-            moved = self.fallback.sidestep(base, t_s) if at_rest else None
-            if moved is not None:
-                return Solved(moved, ReplanStatus.SIDESTEP, spent, tries, problems=problems, windows=used)
-            soon = t_soon()
-            if self.acceptance.check(base, soon, max(t_s, soon) + cfg.conflict_horizon).safe:
-                # what the team flies (a sidestep under way, say) stays clear: a stop would only
-                # cut it short, perhaps where a known motion will pass
-                return Solved(None, ReplanStatus.KEPT, spent, tries, problems=problems, windows=used)
-            plan, status = self.fallback.stop(base, soon, max(t_s, soon))
+            wall0 = time.perf_counter()
+            plan, status = self.fallback.when_none_passes(base, t_s, t_soon, at_rest, deadline)
+            self.fallback_s = max(time.perf_counter() - wall0, FALLBACK_DECAY * self.fallback_s)
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full
         if deadline.end is not None:
