@@ -70,17 +70,19 @@ class Fallback:
 
     def when_none_passes(self, base: TeamTrajectory, t_s: float, t_soon: Callable[[], float], at_rest: bool,
                          deadline: Deadline | None = None) -> tuple[Reference | None, ReplanStatus]:
-        """What the team flies when a re-plan switching at ``t_s`` finds no plan: a hovering
-        (``at_rest``) team's :meth:`sidestep` (sought until ``deadline``); else the current plan
+        """What the team flies when a re-plan switching at ``t_s`` finds no plan: the current plan
         (``None``, kept) if it stays clear over the horizon from ``t_soon()`` (the earliest a
         stop decided now reaches the UAVs): a stop would only cut a sidestep under way short,
-        perhaps where a known motion will pass; else a :meth:`stop`."""
+        perhaps where a known motion will pass; else a hovering (``at_rest``) team's
+        :meth:`sidestep` (sought until ``deadline``); else a :meth:`stop` (from ``t_soon()``
+        asked again: the sidestep's search took time)."""
+        soon = t_soon()
+        if self.acceptance.check(base, soon, max(t_s, soon) + self.horizon).safe:
+            return None, ReplanStatus.KEPT  # a hover that stays clear needs no sidestep either: one check
         moved = self.sidestep(base, t_s, deadline) if at_rest else None
         if moved is not None:
             return moved, ReplanStatus.SIDESTEP
         soon = t_soon()
-        if self.acceptance.check(base, soon, max(t_s, soon) + self.horizon).safe:
-            return None, ReplanStatus.KEPT
         return self.stop(base, soon, max(t_s, soon))
 
     def stop(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Reference, ReplanStatus]:

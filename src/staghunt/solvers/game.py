@@ -357,7 +357,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
     candidates: list[Candidate] = []
     starts: list[dict[str, Any]] = []
     # Several starts keep the finish its evaluations where it can make the Powell descent (solvers/finish.py).
-    reserve = int(FINISH_SHARE * budget) if S > 1 and descent_fits(int(FINISH_SHARE * budget), N) else 0
+    reserve = int(FINISH_SHARE * budget)
+    reserve = reserve if S > 1 and descent_fits(reserve, N) else 0
     for s in range(S):
         kind = _start_kind(s)
         cap = spent + (budget - reserve - spent) // (S - s) + (extra if s == 0 else 0)
