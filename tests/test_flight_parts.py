@@ -13,13 +13,14 @@ import pytest
 from staghunt import load_scenario
 from staghunt.engine import get_engine
 from staghunt.flight import FlyConfig
+from staghunt.flight.known import TAIL_GAP_M, route_beyond
 from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink, Telemetry
 from staghunt.flight.onboard import START_TOLERANCE, Onboard, hold_piece
 from staghunt.flight.replan import Replanner
 from staghunt.flight.station import PLAN_COPIES, GroundStation
 from staghunt.task import VehicleLimits
 from staghunt.trajectory.quintic import Reference, timed_path
-from staghunt.trajectory.team import Track
+from staghunt.trajectory.team import RowTeam, Still, Track
 from staghunt.world import Cylinder
 from staghunt.world.dynamic import Dynamics, Link
 
@@ -174,7 +175,6 @@ def test_holds_and_stops_of_a_team_at_rest_do_not_nest_however_many():
     once more, and after some hundreds of them evaluating the track hit Python's recursion
     limit (a hovering team retrying for minutes)."""
     from staghunt.trajectory.quintic import stop_piece
-    from staghunt.trajectory.team import RowTeam
 
     ref = _plan()
     track = Track(((0.0, ref, 0),))
@@ -450,3 +450,24 @@ def test_a_hovering_team_waits_for_a_known_motion_to_pass_before_it_gives_up():
     retries = [r.time for r in station.records if r.cause.value == "retry"]
     assert len(retries) > cfg.retries_after_stop  # went on retrying while the truck was to come
     assert gave_up is not None and gave_up >= 12.0 and gave_up < 12.0 + cfg.retry_interval + 0.5
+
+
+def test_a_receding_horizons_tail_is_the_planned_route_not_samples_of_the_curve():
+    """Beyond its horizon a receding re-plan keeps the current plan's planned points (its
+    knots). Samples of the curve every half second carried its wobbles, and where it crawled
+    points centimetres apart, into the next plan's path."""
+    pts = np.array([[[0.0, 0.0, 10.0], [20.0, 0.0, 10.0], [20.0, 20.0, 10.0]],
+                    [[0.0, 6.0, 10.0], [14.0, 6.0, 10.0], [14.0, 20.0, 10.0]]])
+    piece = timed_path(pts, 0.0, LIMITS)
+    ref = Reference((piece,))
+    tracks = RowTeam(tuple(Track(((0.0, ref, n),)) for n in range(2)), (0, 1))
+    t = float(piece.knots[3]) - 0.05  # just before a knot: that knot is too near to keep
+    tail = route_beyond(tracks, t)
+    here = piece.state(np.array([t]))[0][:, 0]
+    later = piece.points[:, piece.knots > t]
+    assert np.linalg.norm(later[:, 0] - here, axis=-1).max() < TAIL_GAP_M  # the near knot ...
+    np.testing.assert_array_equal(tail, later[:, 1:])  # ... dropped, every later one kept as planned
+    assert tail[:, -1].tolist() == pts[:, -1].tolist()  # up to the goals
+    # UAVs on different curves (one holds): no common route, the caller samples the curves
+    held = RowTeam((Track(((0.0, ref, 0),)), Track(((0.0, Still(pts[:, 0], 0.0), 1),))), (0, 0))
+    assert route_beyond(held, t) is None

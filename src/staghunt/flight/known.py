@@ -100,6 +100,31 @@ def _going(traj: TeamTrajectory, t: float, row: int) -> tuple[TeamTrajectory, in
     return traj, row, t
 
 
+TAIL_GAP_M = 1.0
+"""A planned point closer than this (m, every UAV) to where the team is at a receding horizon's
+end is not kept in the tail beyond it (:func:`route_beyond`): the curve there leaves the
+polyline by centimetres, and a leg that short would be a jog of the path."""
+
+
+def route_beyond(base: TeamTrajectory, t: float) -> np.ndarray | None:
+    """``(N, M, 3)`` absolute: the planned points the team's timed path passes after ``t`` (its
+    knots, the polyline that was planned and checked), ``None`` unless every UAV of ``base``
+    flies a row of one timed path then. A receding-horizon re-plan keeps these beyond its
+    horizon: samples of the curve in time carried its wobbles and, where it crawled, points
+    centimetres apart at right angles into the next plan's path, which slowed its timing in
+    turn (benchmarks/JOURNAL.md, "Closed loop: the receding horizon's tail")."""
+    found = [_going(base, t, n) for n in range(base.n_uavs)]
+    piece, _, tau = found[0]
+    if not isinstance(piece, Piece) or piece.kind != "path" or any(f[0] is not piece for f in found):
+        return None
+    rows = [f[1] for f in found]
+    points = piece.points[rows][:, piece.knots > tau + 1e-9]
+    here = piece.state(np.array([tau]))[0][rows, 0]  # (N, 3)
+    near = np.linalg.norm(points - here[:, None], axis=-1).max(axis=0) < TAIL_GAP_M  # (M,)
+    first = int(np.argmin(near)) if not near.all() else points.shape[1]
+    return points[:, first:] if first < points.shape[1] else None
+
+
 def warm_plan(scenario: Scenario, base: TeamTrajectory, t_s: float, K: int,
               until: float | None = None) -> np.ndarray:
     """``(N, K, 3)`` ``(x, y, h)``: the rest of the path each UAV of ``base`` is flying (or was,

@@ -44,7 +44,7 @@ from staghunt.flight import aside
 from staghunt.flight.config import FlyConfig
 from staghunt.flight.fallback import Fallback, stopping
 from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_margins, sub_scenario, swept_obstacles,
-                                   to_xyh, warm_plan)
+                                   route_beyond, to_xyh, warm_plan)
 from staghunt.flight.records import ReplanStatus, Solved
 from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
@@ -377,8 +377,10 @@ class Replanner:
         goals, tail = None, None
         if until is not None:
             goals = to_xyh(sc, start.base.state(np.array([until]))[0][:, 0])
-            grid = np.arange(until + TAIL_STEP_S, end_time(start.base) + TAIL_STEP_S, TAIL_STEP_S)
-            tail = start.base.state(grid)[0]
+            tail = route_beyond(start.base, until)
+            if tail is None:  # the UAVs fly different curves then: the current plan's curve, sampled
+                grid = np.arange(until + TAIL_STEP_S, end_time(start.base) + TAIL_STEP_S, TAIL_STEP_S)
+                tail = start.base.state(grid)[0]
         N = sc.n_uavs
         budget = settings.particles * (settings.iterations + 1) * N
         cyl, prm = self.known.shapes()
