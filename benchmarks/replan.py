@@ -206,6 +206,18 @@ def _judged(row: dict[str, Any]) -> dict[str, Any]:
                          "cause": "sensed" if x["trigger"].startswith("sensed") else "other"} for x in row["replans"]]}
 
 
+def _replaced(replans: list[dict[str, Any]]) -> list[float | None]:
+    """For each event plan of one episode sent uncertified: the seconds (flight time) until a
+    certified receding-horizon plan replaced it (``None``: the next plan sent was not one, or
+    none was)."""
+    sent = [x for x in replans if x["sent"]]
+    out: list[float | None] = []
+    for x, nxt in zip(sent, sent[1:] + [None]):
+        if not x["receding"] and x["solved"] and not x["certified"]:
+            out.append(nxt["time"] - x["time"] if nxt is not None and nxt["receding"] and nxt["certified"] else None)
+    return out
+
+
 def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     ok = [_judged(r) for r in rows if "error" not in r]
     events = [x for r in ok for x in r["replans"] if not x["receding"]]
@@ -218,6 +230,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     clean = [r for r in ok if r["status"] == "arrived" and r["stops"] == 0 and r["holds"] == 0]
     speed = [r["flight_s"] / r["wall_s"] for r in ok if r.get("wall_s")]
     count = (lambda key: sum(bool(x[key]) for x in events)) if events and events[0].get("late") is not None else None
+    replaced = [a for r in ok for a in _replaced(r["replans"])]
+    after = [a for a in replaced if a is not None]
     return {
         "episodes": len(rows), "refused": len(rows) - len(ok),
         **{s: sum(r["status"] == s for r in ok) for s in ("arrived", "stopped", "breach", "unsafe")},
@@ -251,6 +265,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         **_percentiles("flying_latency", np.array([x["latency_s"] for x in timed if x["deadline_s"] <= least + 1e-9])
                        * 1000),
         "receding": len(receding), "receding_sent": sum(x["sent"] for x in receding),
+        "event_uncertified": len(replaced), "event_replaced": len(after),
+        "event_replaced_after_s_median": float(np.median(after)) if after else None,
         "sim_speed_median": float(np.median(speed)) if speed else None,
     }
 
@@ -283,7 +299,9 @@ def table(summary: dict[str, dict[str, Any]], title: str = "set") -> str:
             + " | " + (f"{s['sensed_latency_p50_ms']:.0f} / {s['sensed_latency_p95_ms']:.0f}"
                        if s.get("sensed_latency_p50_ms") is not None else na)
             + " | " + (f"{s['over_deadline']} / {s['late']}" if s["over_deadline"] is not None else na) + " | "
-            f"{s['certified']}/{s['solved']} | "
+            f"{s['certified']}/{s['solved']}"
+            + (f"; uncertified event plans replaced by a certified one {s['event_replaced']}/{s['event_uncertified']}"
+               if s.get("event_uncertified") else "") + " | "
             + (f"{s['receding_sent']} / {s['receding']}" if s["receding"] else na) + " | "
             + (f"{s['sim_speed_median']:.2f}" if s["sim_speed_median"] else na) + " |")
     return "\n".join(lines) + "\n"

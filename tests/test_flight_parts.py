@@ -16,6 +16,7 @@ from staghunt.flight import FlyConfig
 from staghunt.flight.known import TAIL_GAP_M, route_beyond
 from staghunt.flight.link import GROUND, Ack, Beacon, Heartbeat, HoldReason, Outage, PlanMessage, RadioLink, Telemetry
 from staghunt.flight.onboard import START_TOLERANCE, Onboard, hold_piece
+from staghunt.flight.records import Cause, ReplanRecord, ReplanStatus
 from staghunt.flight.replan import Replanner
 from staghunt.flight.station import PLAN_COPIES, GroundStation
 from staghunt.task import VehicleLimits
@@ -302,7 +303,7 @@ def test_a_moving_team_with_no_plan_yet_flies_on_and_solves_again_while_a_later_
     stop decided at the next re-plan still passes: the team flies on (no stop sent), the station
     solves again at its next tick, warm-started, at most ``deferrals`` times in a row; then the
     stop (or the plan from rest) as before."""
-    from staghunt.flight.records import ReplanStatus, Solved
+    from staghunt.flight.records import Solved
 
     ref, station = _station_on_two_straight_paths()
     station.config = replace(station.config, deferrals=2)
@@ -426,7 +427,7 @@ def test_a_hovering_team_waits_for_a_known_motion_to_pass_before_it_gives_up():
     """After a stop, re-plans from the hover that fail while a known motion's window (solved
     around) is still to come do not count the goal as unreachable: the team retries until the
     window has passed, then gives up after its retries as before."""
-    from staghunt.flight.records import ReplanStatus, Solved
+    from staghunt.flight.records import Solved
 
     ref, station = _station_on_two_straight_paths()
     cfg = station.config
@@ -471,3 +472,21 @@ def test_a_receding_horizons_tail_is_the_planned_route_not_samples_of_the_curve(
     # UAVs on different curves (one holds): no common route, the caller samples the curves
     held = RowTeam((Track(((0.0, ref, 0),)), Track(((0.0, Still(pts[:, 0], 0.0), 1),))), (0, 0))
     assert route_beyond(held, t) is None
+
+
+def test_a_plan_flown_uncertified_gives_way_to_a_certified_receding_plan_that_is_no_later():
+    """A receding-horizon plan replaces a certified plan only if it arrives 0.5 s sooner; an event
+    plan sent uncertified at its deadline (not an equilibrium) gives way to one arriving no
+    later, so that the team flies an equilibrium again as soon as one is found."""
+    ref, station = _station_on_two_straight_paths()
+    base = station.team
+    same, later = (Reference((replace(ref.pieces[0], t0=t0, t1=ref.arrival + t0),)) for t0 in (0.0, 0.1))
+    assert same.arrival == ref.arrival and later.arrival > ref.arrival
+    assert not station._better(same, base)  # the take-off plan: 0.5 s sooner wanted
+    sent = ReplanRecord(1.0, 1.3, Cause.SENSED, "sensed pop-up", ReplanStatus.REPLANNED, 0.2, 0.2, "measured", 1.3,
+                        100, 1, version=1)
+    station.records.append(sent)
+    station.released = (1, 1.3)
+    assert station._better(same, base) and not station._better(later, base)
+    station.records[-1] = replace(sent, certified=True)  # its later certificate: an equilibrium after all
+    assert not station._better(same, base)

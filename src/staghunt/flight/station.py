@@ -42,6 +42,8 @@ PLAN_COPIES = 2
 """Copies of every plan message sent at once (a lost plan is the costliest message)."""
 STOP_RESERVE = 0.05
 """Seconds a fallback stop needs to be computed and sent after a failed solve."""
+SOONER_S = 0.5
+"""Seconds sooner a receding-horizon plan must arrive to replace a certified plan."""
 
 
 @dataclass(frozen=True)
@@ -333,8 +335,14 @@ class GroundStation:
         self.job = _Job(release, None, -1, Cause.RECEDING)  # busy meanwhile; an event pre-empts it
 
     def _better(self, plan: Reference, base: RowTeam) -> bool:
-        """A receding-horizon plan (certified) is sent only if it arrives at least 0.5 s sooner."""
-        return plan.arrival <= end_time(base) - 0.5
+        """A receding-horizon plan (certified) is sent only if it arrives at least
+        :data:`SOONER_S` sooner, or no later when the plan flown is not an equilibrium (sent at
+        its deadline uncertified, and its later certificate found a better reply or has not
+        come yet): the team then flies a certified equilibrium again as soon as one is found."""
+        version = self.released[0]  # 0: the take-off plan
+        flown = next((r for r in reversed(self.records) if r.version == version), None) if version else None
+        equilibrium = flown is None or flown.certified
+        return plan.arrival <= end_time(base) - (SOONER_S if equilibrium else 0.0)
 
     def _after(self, t: float, trigger: Trigger, status: ReplanStatus) -> None:
         """The stop-and-retry bookkeeping of a re-plan's outcome."""
