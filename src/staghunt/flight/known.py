@@ -112,7 +112,7 @@ def route_beyond(base: TeamTrajectory, t: float) -> np.ndarray | None:
     flies a row of one timed path then. A receding-horizon re-plan keeps these beyond its
     horizon: samples of the curve in time carried its wobbles and, where it crawled, points
     centimetres apart at right angles into the next plan's path, which slowed its timing in
-    turn (benchmarks/JOURNAL.md, "Closed loop: the receding horizon's tail")."""
+    turn (benchmarks/JOURNAL.md, "Closed loop: where the extra time goes")."""
     found = [_going(base, t, n) for n in range(base.n_uavs)]
     piece, _, tau = found[0]
     if not isinstance(piece, Piece) or piece.kind != "path" or any(f[0] is not piece for f in found):
