@@ -61,6 +61,9 @@ class FlyConfig:
       re-plan every half second, sixteen in all: as much search as four re-plans of four
       times the deadline, two seconds apart (the defaults before), in slices that keep every
       re-plan's latency within the deadline.
+    - ``repair_budget_factor``: a receding-horizon re-plan while the plan flown is not a
+      certified equilibrium (an event's plan sent uncertified) gets this many times the budget
+      and the deadline; an event pre-empts it as it does any receding-horizon re-plan.
     - ``link``: the radio (delay, jitter, loss; ``None``: the scenario's or events file's
       ``[link]``); ``outages``: radio shadows, every message to or from a UAV lost for a while
       (:class:`~staghunt.flight.link.Outage`); ``plan_timeout``: a UAV that hears nothing from
@@ -94,6 +97,7 @@ class FlyConfig:
     defer_stops: bool = True
     deferrals: int = 8
     stop_budget_factor: int = 1
+    repair_budget_factor: int = 1
     retries_after_stop: int = 15
     retry_interval: float = 0.5
     link: Link | None = None
@@ -151,6 +155,8 @@ class FlyConfig:
             ("defer_stops", isinstance(self.defer_stops, bool), "True or False"),
             ("deferrals", integer(self.deferrals) and self.deferrals <= 100, "an integer in [1, 100]"),
             ("stop_budget_factor", integer(self.stop_budget_factor) and self.stop_budget_factor <= 100,
+             "an integer in [1, 100]"),
+            ("repair_budget_factor", integer(self.repair_budget_factor) and self.repair_budget_factor <= 100,
              "an integer in [1, 100]"),
             ("retries_after_stop", integer(self.retries_after_stop) and self.retries_after_stop <= 100,
              "an integer in [1, 100]"),

@@ -268,7 +268,9 @@ class GroundStation:
         cfg = self.config
         wall0 = time.perf_counter()
         self.last_replan = t
-        scale = cfg.stop_budget_factor if self.stopped_at >= 0 else 1
+        receding = trigger.cause is Cause.RECEDING
+        scale = (cfg.stop_budget_factor if self.stopped_at >= 0
+                 else cfg.repair_budget_factor if receding and not self._flying_equilibrium() else 1)
         D = cfg.deadline_for(self.n) * scale
         t_s = self._step(t + D + self.worst)
         base = self.team
@@ -283,7 +285,6 @@ class GroundStation:
             spent = time.perf_counter() - wall0 if cfg.measured else float(cfg.latency)
             return self._step(t + spent + STOP_RESERVE) + self.worst
 
-        receding = trigger.cause is Cause.RECEDING
         # the next re-plan starts at most a deadline and two ticks later (one to notice, one of overrun)
         defer = (D + 2.0 / self.dyn.sensing.rate if cfg.defer_stops and self.deferred < cfg.deferrals
                  and trigger.cause is not Cause.RETRY and self.stopped_at < 0 else 0.0)
@@ -339,10 +340,13 @@ class GroundStation:
         :data:`SOONER_S` sooner, or no later when the plan flown is not an equilibrium (sent at
         its deadline uncertified, and its later certificate found a better reply or has not
         come yet): the team then flies a certified equilibrium again as soon as one is found."""
+        return plan.arrival <= end_time(base) - (SOONER_S if self._flying_equilibrium() else 0.0)
+
+    def _flying_equilibrium(self) -> bool:
+        """Whether the plan released last is a certified equilibrium (the take-off plan counts as one)."""
         version = self.released[0]  # 0: the take-off plan
         flown = next((r for r in reversed(self.records) if r.version == version), None) if version else None
-        equilibrium = flown is None or flown.certified
-        return plan.arrival <= end_time(base) - (SOONER_S if equilibrium else 0.0)
+        return flown is None or flown.certified
 
     def _after(self, t: float, trigger: Trigger, status: ReplanStatus) -> None:
         """The stop-and-retry bookkeeping of a re-plan's outcome."""
