@@ -490,3 +490,36 @@ def test_a_plan_flown_uncertified_gives_way_to_a_certified_receding_plan_that_is
     assert station._better(same, base) and not station._better(later, base)
     station.records[-1] = replace(sent, certified=True)  # its later certificate: an equilibrium after all
     assert not station._better(same, base)
+
+
+def test_a_receding_replan_gets_the_repair_budget_while_the_plan_flown_is_not_an_equilibrium():
+    """``repair_budget_factor``: a receding-horizon re-plan while the team flies an event's plan
+    sent uncertified has that many times the budget and the deadline; once the plan flown is
+    certified, the flight's own again."""
+    from staghunt.flight.records import Solved
+    from staghunt.flight.station import Trigger
+
+    ref, station = _station_on_two_straight_paths()
+    station.config = replace(station.config, repair_budget_factor=3)
+    scales: list[int] = []
+
+    def solve(start, soon, scale, windows, deadline, horizon, fallback, defer):
+        scales.append(scale)
+        return Solved(None, ReplanStatus.KEPT)
+
+    station.replanner.solve = solve
+    sent = ReplanRecord(1.0, 1.3, Cause.SENSED, "sensed pop-up", ReplanStatus.REPLANNED, 0.3, 0.3, "fixed", 1.3,
+                        100, 1, version=1)
+    index = len(station.records)
+    station.records.append(sent)
+    station.released = (1, 1.3)
+    receding = Trigger(Cause.RECEDING, "receding horizon")
+    station._replan(2.0, receding)
+    assert scales == [3] and station.records[-1].deadline_s == pytest.approx(0.9)
+    station.records[index] = replace(sent, certified=True)  # its later certificate: an equilibrium
+    station.job = None
+    station._replan(3.0, receding)
+    assert scales == [3, 1] and station.records[-1].deadline_s == pytest.approx(0.3)
+    station.job = None
+    station._replan(4.0, Trigger(Cause.SENSED, "sensed pop-up"))  # events keep the flight's budget
+    assert scales == [3, 1, 1]
