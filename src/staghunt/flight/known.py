@@ -121,8 +121,7 @@ def route_beyond(base: TeamTrajectory, t: float) -> np.ndarray | None:
     points = piece.points[rows][:, piece.knots > tau + 1e-9]
     here = piece.state(np.array([tau]))[0][rows, 0]  # (N, 3)
     near = np.linalg.norm(points - here[:, None], axis=-1).max(axis=0) < TAIL_GAP_M  # (M,)
-    first = int(np.argmin(near)) if not near.all() else points.shape[1]
-    return points[:, first:] if first < points.shape[1] else None
+    return None if near.all() else points[:, int(np.argmin(near)):]  # from the first point not near
 
 
 def warm_plan(scenario: Scenario, base: TeamTrajectory, t_s: float, K: int,
