@@ -83,7 +83,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
                      "deadline_s": x.deadline_s, "late": x.late, "overran": x.overran, "certified": x.certified,
                      "solved": x.solved, "committed": x.committed, "sent": x.version > 0,
                      "receding": x.cause is Cause.RECEDING, "max_gap": max(x.nash_gaps, default=None),
-                     "trigger": x.trigger, "time": x.time}
+                     "trigger": x.trigger, "time": x.time, "phases": {k: round(v, 4) for k, v in x.phases}}
                     for x in r.replans],
         "tracking_rms_m": float(np.sqrt(np.mean(r.tracking_rms ** 2))),
         "tracking_max_m": float(r.tracking_max.max()),
@@ -231,6 +231,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     speed = [r["flight_s"] / r["wall_s"] for r in ok if r.get("wall_s")]
     count = (lambda key: sum(bool(x[key]) for x in events)) if events and events[0].get("late") is not None else None
     replaced = [a for r in ok for a in _replaced(r["replans"])]
+    worst = max((x for r in ok for x in r["replans"] if x.get("phases")), key=lambda x: x["latency_s"] / x["deadline_s"],
+                default=None)
     after = [a for a in replaced if a is not None]
     return {
         "episodes": len(rows), "refused": len(rows) - len(ok),
@@ -268,6 +270,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "event_uncertified": len(replaced), "event_replaced": len(after),
         "event_replaced_after_s_median": float(np.median(after)) if after else None,
         "sim_speed_median": float(np.median(speed)) if speed else None,
+        # the re-plan furthest over its deadline, and where its wall time went
+        "worst_overrun": None if worst is None else {k: worst[k] for k in ("time", "cause", "trigger", "status",
+                                                                             "latency_s", "deadline_s", "phases")},
     }
 
 
@@ -429,6 +434,12 @@ def main() -> int:
                            f"{link[0] * 1000:.0f} ms / {link[1] * 1000:.0f} ms / {link[2] * 100:.0f} %, latency "
                            f"{args.latency}, {wall / 60:.1f} min, load average median {meta['loadavg_median']:.2f} "
                            f"(range {meta['loadavg_range'][0]:.2f}-{meta['loadavg_range'][1]:.2f}).\n")
+    for k in kinds:
+        w = summary[k]["worst_overrun"]
+        if w is not None:
+            md += (f"\n{k}: the re-plan furthest over its deadline took {w['latency_s'] * 1000:.0f} ms of "
+                   f"{w['deadline_s'] * 1000:.0f} ({w['cause']}, {w['status']}): "
+                   + ", ".join(f"{p} {1000 * v:.0f}" for p, v in w["phases"].items()) + " ms.\n")
     (args.out / f"{name}.md").write_text(md)
     print(md)
     return 0

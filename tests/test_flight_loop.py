@@ -76,6 +76,9 @@ def test_popup_on_the_next_leg_is_swerved_round_after_the_latency_and_the_link(p
     assert rec.status is ReplanStatus.REPLANNED and r.stops == 0 and r.holds == 0  # a swerve, no stop
     assert rec.committed and rec.certified and rec.nash_gaps and rec.evaluations > 0
     assert 0 <= rec.state_error_m < 0.5
+    phases = dict(rec.phases)  # where the re-plan's wall time went: it adds up to the latency measured
+    assert list(phases)[:2] == ["start", "game"] and "certificate" in phases
+    assert 0.5 * rec.latency_s <= sum(phases.values()) <= rec.latency_s
     after = r.times >= 4.0  # the true clearance to the pop-up after it appeared, in the simulated flight
     d = np.hypot(r.actual[:, after, 0] - shape.x, r.actual[:, after, 1] - shape.y) - shape.radius - 0.5
     assert d.min() > r.required_clearance and r.status is FlightStatus.ARRIVED

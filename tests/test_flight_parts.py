@@ -423,6 +423,43 @@ def test_the_plan_from_rest_leaves_the_fallbacks_running_time_free_at_the_deadli
         assert planner.fallback_s >= FALLBACK_DECAY * estimate
 
 
+def test_the_plan_from_rest_is_solved_once_per_replan_and_the_laps_say_where_the_time_went():
+    """On one core the plan from rest is solved when the moving solve first ends infeasible, and
+    only then, however often that solve asks again (it solved it anew each time, each one at
+    least a reply past its deadline); the re-plan's wall time is split into its parts."""
+    import time
+    from types import SimpleNamespace
+
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import _Attempt
+
+    ref, station = _station_on_two_straight_paths()
+    planner = station.replanner
+    s = ref.state(np.array([1.0]))[:, :, 0]
+    start = Start(1.0, ref, s[0], s[1], s[2])
+    rests = []
+
+    def attempts(start_, windows, warm, *args, stop_retrying=None, **kwargs):
+        time.sleep(0.02)
+        assert stop_retrying is not None and not any([stop_retrying(), stop_retrying(), stop_retrying()])
+        return _Attempt(None, SimpleNamespace(plan=warm), None, ["no feasible plan"], 3, 10, 0.0, [])
+
+    def from_rest(*args, **kwargs):
+        rests.append(args)
+        time.sleep(0.05)
+        return None, None
+
+    planner._attempts, planner.from_rest = attempts, from_rest
+    wall = time.perf_counter()
+    out = planner.solve(start, lambda: 1.0, 1, [], None, 0.0, fallback=True)
+    wall = time.perf_counter() - wall
+    assert out.status.value == "kept" and len(rests) == 1
+    laps = planner.laps.parts
+    assert list(laps) == ["game", "rest", "fallback"]
+    assert 0.02 <= laps["game"] < 0.05 and 0.05 <= laps["rest"] < 0.08
+    assert sum(laps.values()) <= wall
+
+
 def test_a_hovering_team_waits_for_a_known_motion_to_pass_before_it_gives_up():
     """After a stop, re-plans from the hover that fail while a known motion's window (solved
     around) is still to come do not count the goal as unreachable: the team retries until the

@@ -4,7 +4,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, field
 from enum import Enum
 from typing import Any
 
@@ -69,7 +70,8 @@ class ReplanRecord:
     reference there (tracking error, sensor noise and delay). ``version``: the plan's number
     (0: none sent); ``committed``: every UAV acknowledged it before it started;
     ``certified_after_s``: a plan sent uncertified at its deadline is certified by the station's
-    next job, this long (wall time) after it was sent (0: certified before)."""
+    next job, this long (wall time) after it was sent (0: certified before). ``phases``: where
+    the wall time went (:class:`Laps`), ``(part, seconds)`` in the order first timed."""
 
     time: float
     switch_time: float
@@ -92,6 +94,7 @@ class ReplanRecord:
     version: int = 0
     committed: bool = False
     certified_after_s: float = 0.0
+    phases: tuple[tuple[str, float], ...] = ()
 
     @property
     def solved(self) -> bool:
@@ -116,8 +119,25 @@ class ReplanRecord:
             "certified": self.certified, "verdict": self.verdict, "problems": list(self.problems),
             "windows": [{"obstacle": w[0], "from": round(w[1], 3), "to": round(w[2], 3)} for w in self.windows],
             "state_error_m": self.state_error_m, "version": self.version, "committed": self.committed,
-            "certified_after_s": self.certified_after_s,
+            "certified_after_s": self.certified_after_s, "phases": dict(self.phases),
         }
+
+
+@dataclass
+class Laps:
+    """A re-plan's wall time by part: :meth:`lap` adds the time since the last lap (or since
+    this was made) to ``part``."""
+
+    parts: dict[str, float] = field(default_factory=dict)
+    last: float = field(default_factory=time.perf_counter)
+
+    def lap(self, part: str) -> None:
+        now = time.perf_counter()
+        self.parts[part] = self.parts.get(part, 0.0) + now - self.last
+        self.last = now
+
+    def items(self) -> tuple[tuple[str, float], ...]:
+        return tuple(self.parts.items())
 
 
 @dataclass(frozen=True)

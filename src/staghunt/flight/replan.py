@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from concurrent.futures import ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, replace
@@ -45,7 +44,7 @@ from staghunt.flight.config import FlyConfig
 from staghunt.flight.fallback import Fallback, stopping
 from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_margins, sub_scenario, swept_obstacles,
                                    route_beyond, to_xyh, warm_plan)
-from staghunt.flight.records import ReplanStatus, Solved
+from staghunt.flight.records import Laps, ReplanStatus, Solved
 from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
@@ -129,6 +128,7 @@ class Replanner:
         self._certifier, self._workers = side_by_side(engine)
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
         self.hint: np.ndarray | None = None  # (N, K, 3) the best try of a deferred re-plan
+        self.laps = Laps()  # where the last solve's wall time went
         if self._workers > 1:
             aside.start(PRELOAD)
 
@@ -146,8 +146,9 @@ class Replanner:
         current plan (:attr:`ReplanStatus.DEFERRED`): the next solve starts from this one's
         best try (:attr:`hint`); no plan from rest is solved then."""
         cfg, sc = self.config, self.scenario
+        laps = self.laps = Laps()
         deadline = deadline or Deadline()
-        full = self._span(deadline) if deadline.end is not None else 0.0
+        full = max(0.0, deadline.left()) if deadline.end is not None else 0.0
         game = Deadline(None if deadline.end is None else deadline.end - (1 - GAME_SHARE) * full)
         K = sc.solver.waypoints
         settings = sc.solver.with_(particles=cfg.replan_particles * scale, iterations=cfg.replan_iterations, waypoints=K)
@@ -182,12 +183,18 @@ class Replanner:
         else:
             box: list[tuple[_Attempt | None, Any]] = []
 
-            def rest_passes() -> bool:
-                box.append(self.from_rest(*rest_args, engine=self.engine))
+            def rest_passes() -> bool:  # solved once, when the moving solve first ends infeasible
+                if not box:
+                    laps.lap("game")
+                    box.append(self.from_rest(*rest_args, engine=self.engine))
+                    laps.lap("rest")
                 return _passed(box[0])
 
             first = moving(self.engine, rest_passes)
-            second = box[0] if box else (self.from_rest(*rest_args, engine=self.engine) if first.plan is None else None)
+            if first.plan is None:
+                rest_passes()
+            second = box[0] if box else None
+        laps.lap("game")
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
@@ -208,9 +215,9 @@ class Replanner:
                 self.hint = first.out.plan
             if not fallback:
                 return Solved(None, ReplanStatus.KEPT, spent, tries, problems=problems, windows=used)
-            wall0 = time.perf_counter()
             plan, status = self.fallback.when_none_passes(base, t_s, t_soon, at_rest, deadline)
-            self.fallback_s = max(time.perf_counter() - wall0, FALLBACK_DECAY * self.fallback_s)
+            laps.lap("fallback")
+            self.fallback_s = max(laps.parts["fallback"], FALLBACK_DECAY * self.fallback_s)
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full
         if deadline.end is not None:
@@ -220,6 +227,7 @@ class Replanner:
             self.search, cfg.certify_options(), cfg.certify_rounds, self.rng, self._certifier.run_swarm,
             self._certifier, self._solo, chosen.azimuth, self._workers, deadline)
         self.certificate_s = deadline.certificate_s
+        laps.lap("certificate")
         cert = done.certificate
         if cert is None:
             return Solved(done.flown, status, spent + done.spent, tries, verdict="not certified: " + "; ".join(done.notes),
@@ -238,10 +246,6 @@ class Replanner:
         cert = done.certificate
         assert cert is not None
         return tuple(float(u.relative) for u in cert.uavs), cert.is_equilibrium, cert.verdict, done.spent
-
-    @staticmethod
-    def _span(deadline: Deadline) -> float:
-        return max(0.0, deadline.left())
 
     def from_rest(self, base: TeamTrajectory, t_soon: float, t_s: float, windows: list[tuple[str, float, float]],
                   settings: Any, rng: np.random.Generator, end: float | None = None, *, engine: Engine,

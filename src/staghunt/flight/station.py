@@ -288,6 +288,7 @@ class GroundStation:
         # the next re-plan starts at most a deadline and two ticks later (one to notice, one of overrun)
         defer = (D + 2.0 / self.dyn.sensing.rate if cfg.defer_stops and self.deferred < cfg.deferrals
                  and trigger.cause is not Cause.RETRY and self.stopped_at < 0 else 0.0)
+        before = time.perf_counter() - wall0
         solved = self.replanner.solve(start, soon, scale, list(trigger.windows),
                                       Deadline.after(D) if cfg.measured else Deadline(),
                                       cfg.replan_horizon if receding else 0.0, fallback=not receding, defer=defer)
@@ -313,7 +314,7 @@ class GroundStation:
             "measured" if cfg.measured else "fixed", release, solved.evaluations, solved.attempts,
             solved.nash_gaps if status.solved else (), solved.certified and status.solved,
             solved.verdict if status.solved else "", solved.problems, solved.windows, error, late,
-            message.version if message is not None else 0))
+            message.version if message is not None else 0, phases=(("start", before), *self.replanner.laps.items())))
         self.job = _Job(release, message, len(self.records) - 1, trigger.cause)
         self.to_certify = None
         if message is not None and status.solved and not solved.certified and solved.game is not None:
