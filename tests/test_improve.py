@@ -92,3 +92,28 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
                                engine.run_swarm, engine, engine, np.pi / 4,
                                deadline=Deadline(time.perf_counter() - 1.0))
     assert late.certificate is None and late.certificates == 0 and "deadline" in late.notes[0]
+
+
+def test_a_certificate_still_searching_at_the_deadline_is_abandoned():
+    """A certificate that its running estimate let start but that is still searching when the
+    deadline passes is abandoned (it is all or nothing) rather than carrying the re-plan past
+    its deadline; the estimate grows to what the share of its searches done implies."""
+    import re
+
+    from staghunt.engine import NumpyEngine
+
+    sc = load_scenario(SMALL)
+    engine = NumpyEngine()  # slow enough that the certificate cannot end in time
+    options = CertifyOptions(400, 300, 0.01)
+    search = check_search(sc.solver, options, "test")
+    deadline = Deadline.after(0.3)
+    t0 = time.perf_counter()
+    out = certify_and_improve(sc, _zigzag(sc), "first", lambda p: "flown", search, options, 0,
+                              np.random.default_rng(5), engine.run_swarm, engine, engine, np.pi / 4,
+                              deadline=deadline)
+    took = time.perf_counter() - t0
+    assert out.certificate is None and out.certificates == 0 and out.flown == "first"
+    note = next(n for n in out.notes if "abandoned" in n)
+    share = float(re.search(r"(\d+) % done", note).group(1)) / 100
+    assert share < 1.0 and took < 0.3 + 1.0  # stopped at its next progress report, not at its end
+    assert deadline.certificate_s >= 0.1  # at least the time it ran (over the share it had done)

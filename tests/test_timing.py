@@ -164,3 +164,21 @@ def test_a_uav_that_waits_while_its_team_mate_moves_does_not_slow_the_team_to_a_
     assert np.linalg.norm(vel, axis=-1).max() <= lim.max_speed
     assert np.linalg.norm(acc, axis=-1).max() <= lim.max_acceleration * 1.001
     assert np.allclose(pos[:, -1], pts[:, -1], atol=1e-6)
+
+
+def test_a_timing_the_start_itself_breaks_gives_up_once_stretching_stops_helping():
+    """A UAV at 6.4 m/s whose path turns back 2 cm ahead: no schedule after the start meets the
+    limits. With no bound on the stretch, the timing doubled the start's interval every try and
+    gave up after the twentieth at a stretch of 4e5 (20 s for one UAV, sampling a curve days
+    long); past four times its first schedule, it now gives up once three stretches in a row
+    leave the worst peak where it was."""
+    import re
+
+    from staghunt.trajectory.quintic import STALL_STRETCH, STALL_TRIES, timed_path
+
+    pts = np.array([[[0.0, 0.0, 10.0], [-0.01, 0.0, 10.02], [0.9, 0.57, 10.82], [-3.2, -0.6, 7.95],
+                     [-0.24, -8.76, 7.29], [-10.03, -24.57, -2.67]]])
+    with pytest.raises(ValueError, match="after a stretch of") as err:
+        timed_path(pts, 0.0, VehicleLimits(), np.array([[-1.77, -5.52, -2.59]]))
+    stretch = float(re.search(r"after a stretch of ([0-9.e+]+)", str(err.value)).group(1))
+    assert stretch < STALL_STRETCH * 2.0 ** (STALL_TRIES + 1)

@@ -58,6 +58,14 @@ class Cancelled(Exception):
     """Raised inside a solve that is no longer needed."""
 
 
+class _CertificateLate(Exception):
+    """Raised from a certificate's progress once the deadline has passed: the certificate is
+    abandoned (a certificate is all or nothing), ``share`` of its searches done."""
+
+    def __init__(self, share: float) -> None:
+        self.share = share
+
+
 class _TimeUp(Exception):
     def __init__(self, plan: np.ndarray, spent: int) -> None:
         self.plan, self.spent = plan, spent
@@ -113,6 +121,21 @@ def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings,
         return RoundsOutcome(up.plan, J, up.spent + 1, [], 0, False)
 
 
+def _watch(deadline: Deadline) -> Callable[[int, int, int, int], None] | None:
+    """A certificate's progress callback that abandons it once ``deadline`` has passed
+    (``None`` without a deadline: nothing depends on the wall clock)."""
+    if deadline.end is None:
+        return None
+    done: dict[int, float] = {}
+
+    def progress(uav: int, n_uavs: int, iteration: int, iterations: int) -> None:
+        done[uav] = iteration / max(iterations, 1)
+        if deadline.passed:
+            raise _CertificateLate(sum(done.values()) / max(n_uavs, 1))
+
+    return progress
+
+
 @dataclass
 class Improved(Generic[Flown]):
     """What :func:`certify_and_improve` ends with: the ``flown`` object of the ``plan``
@@ -149,7 +172,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
     single plans and makes the local searches before a certificate. ``deadline``: a certificate
     starts only if its running estimate fits before the deadline (the estimate is updated with
-    every certificate made)."""
+    every certificate made), and one still searching when the deadline passes is abandoned."""
     deadline = deadline or Deadline()
     model = CostModel.from_scenario(sub)
     local = int(LOCAL_SHARE * search.particles * (search.iterations + 1))
@@ -185,8 +208,15 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
             break
         t0 = time.perf_counter()
         request = CertifyRequest.of_checked(sub, plan, search, options, int(rng.integers(2**31)))
-        cert = certify_plan(request, runner=runner, azimuth=azimuth, workers=workers, carried=carried,
-                            engine=engine, searched=searched)
+        try:
+            cert = certify_plan(request, runner=runner, azimuth=azimuth, workers=workers, carried=carried,
+                                engine=engine, searched=searched, progress=_watch(deadline))
+        except _CertificateLate as late:  # its estimate from the share of its searches done
+            took = time.perf_counter() - t0
+            deadline.certificate_s = max(deadline.certificate_s, took / max(late.share, 0.1))
+            out.notes.append(f"deadline: the certificate was abandoned after {took:.2f} s, "
+                             f"{100 * late.share:.0f} % done")
+            break
         took = time.perf_counter() - t0
         deadline.certificate_s = took if out.certificates == 0 and deadline.certificate_s == 0 else \
             max(took, 0.5 * (deadline.certificate_s + took))

@@ -276,6 +276,13 @@ MIN_KNOT_S = 0.3
 """Seconds between two knots of :func:`own_pace`'s team schedule, at least (closer ones merged)."""
 DENSE_SPACING = 3.0
 """Longest sub-leg (m) of the dense paths a timed path interpolates."""
+STALL_TRIES = 3
+"""Stretches in a row (on one check grid) after which a timing already longer than
+:data:`STALL_STRETCH` times its first schedule, whose worst peak over its limit has not come
+down to :data:`STALL_GAIN` of what it was, gives up (:func:`timed_path`). Below that stretch
+the peak may dwell a few tries while it moves between intervals, and end within the limits."""
+STALL_GAIN = 0.99
+STALL_STRETCH = 4.0
 DUPLICATE_M = 0.01
 """A point closer than this (m) to the last kept one, for every UAV, is not timed apart."""
 
@@ -290,8 +297,11 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     quintic spline with the start and end conditions, and, if a peak on the check grid still
     breaks a limit, the knot intervals where it does (and their neighbours) are stretched.
     Raises ``ValueError`` if no schedule whose duration is at most ``max_stretch`` times the
-    first one meets the limits within ``max_tries`` (the imposed start itself breaks
-    them: a UAV moving at speed cannot turn sharply at once, whatever the schedule after).
+    first one meets the limits within ``max_tries``, or, past :data:`STALL_STRETCH`, as soon
+    as :data:`STALL_TRIES` stretches in a row leave the worst peak where it was (the imposed
+    start itself breaks them: a UAV moving at speed cannot turn sharply at once, whatever the
+    schedule after; stretched on regardless, its interval doubled every try, and sampling the
+    curve took minutes by the twentieth).
     ``own``: every UAV at its own pace (:func:`own_pace`), not the team's common one."""
     p = np.asarray(points, dtype=float)
     N = p.shape[0]
@@ -313,13 +323,14 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     total = float(base[-1])
     stretch = 1.0
     step = COARSE_STEP_S
+    worst: list[float] = []  # the worst peak over its limit, per try on this grid
     for _ in range(max_tries):
         times = t0 + np.concatenate([[0.0], np.cumsum(dt)])
         spline = _quintic(times, dense, v0, a0)
         vk, ak = _peaks(spline, times, step)
         v, a = float(vk.max()), float(ak.max())
         if v <= v_lim and a <= a_lim and step > CHECK_STEP_S:  # passes coarsely: check it finely
-            step = CHECK_STEP_S
+            step, worst = CHECK_STEP_S, []
             vk, ak = _peaks(spline, times, step)
             v, a = float(vk.max()), float(ak.max())
         if v <= v_lim and a <= a_lim:
@@ -327,6 +338,9 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
         # Slow down where a limit is broken (and one interval on each side), not everywhere: a
         # sharp turn at the start of a re-plan slows the start, not the whole flight.
         over = np.maximum(vk / v_lim, np.sqrt(ak / a_lim))
+        worst.append(float(over.max()))
+        if stretch > STALL_STRETCH and len(worst) > STALL_TRIES and worst[-1] > STALL_GAIN * worst[-1 - STALL_TRIES]:
+            break
         factor = np.where(over > 1.0, np.clip(over, 1.05, 2.0), 1.0)
         factor = np.maximum(factor, np.maximum(np.r_[factor[1:], 1.0], np.r_[1.0, factor[:-1]]))
         dt = dt * factor
