@@ -392,6 +392,29 @@ def test_hovering_team_sidesteps_a_known_motion():
     assert np.allclose(after - after[0], hover - hover[0])  # moved as one rigid formation
 
 
+def test_a_sidestep_tries_the_spots_clear_of_the_motions_way_first(monkeypatch):
+    """A truck driving along the row where UAV1 hovers: the spots in heading order (east
+    first, along the road) and on the nearest ring all stay in its way; the first spot tried is
+    off the road, and it passes (in heading order, the 19th spot tried was the first to pass)."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.replan import Replanner
+
+    sc, ref, hover, _ = _hovering_in_a_trucks_way()
+    y = float(hover[0, 1])
+    dyn = Dynamics(moving=(MovingCylinder("truck", 2.0, ((2.0, y), (58.0, y)), 3.0, start_time=8.0),))
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, FIXED, get_engine("numpy"), np.random.default_rng(0))
+    checks = []
+    check = type(rp.acceptance).check
+    monkeypatch.setattr(type(rp.acceptance), "check", lambda *a, **k: checks.append(1) or check(*a, **k))
+    moved = rp.fallback.sidestep(ref, 8.0)
+    assert moved is not None and len(checks) == 2  # the hover's check, then the first spot's
+    monkeypatch.undo()
+    v = rp.acceptance.check(moved, moved.pieces[0].t0, 40.0)
+    assert v.safe and not v.windows
+    after = moved.state(np.array([20.0]))[0][:, 0]
+    assert np.all(after[:, 1] > y + 5.0)  # off the road, away from it (UAV2's side)
+
+
 def test_a_sidestep_is_sought_only_out_of_a_known_motions_way_and_only_until_the_deadline(monkeypatch):
     """A hover that only something sensed threatens (a pop-up at a UAV: no known motion's
     window) gets no sidestep after one check (it scanned 64 spots before, each failing from its
