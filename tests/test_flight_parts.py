@@ -446,7 +446,7 @@ def test_the_plan_from_rest_is_solved_once_per_replan_and_the_laps_say_where_the
 
     def from_rest(*args, **kwargs):
         rests.append(args)
-        time.sleep(0.05)
+        time.sleep(0.2)
         return None, None
 
     planner._attempts, planner.from_rest = attempts, from_rest
@@ -456,7 +456,7 @@ def test_the_plan_from_rest_is_solved_once_per_replan_and_the_laps_say_where_the
     assert out.status.value == "kept" and len(rests) == 1
     laps = planner.laps.parts
     assert list(laps) == ["game", "rest", "fallback"]
-    assert 0.02 <= laps["game"] < 0.05 and 0.05 <= laps["rest"] < 0.08
+    assert 0.02 <= laps["game"] < 0.2 <= laps["rest"]  # the plan from rest's time is its own, not the game's
     assert sum(laps.values()) <= wall
 
 
