@@ -65,8 +65,9 @@ class FlyConfig:
       certified equilibrium (an event's plan sent uncertified) gets this many times the budget
       and the deadline; an event pre-empts it as it does any receding-horizon re-plan. Off
       (1) by default: with 3, scenario 2's plans sent uncertified gave way to a certified one
-      sooner, but one run had a re-plan that overran its deadline by over a minute, not yet
-      explained (benchmarks/JOURNAL.md, "Closed loop: where the extra time goes").
+      sooner in one run and no sooner in a later one, and one run had a re-plan that overran
+      its deadline by over a minute, not explained (benchmarks/JOURNAL.md, "Closed loop: where
+      the extra time goes" and "Closed loop: where a re-plan's wall time goes").
     - ``link``: the radio (delay, jitter, loss; ``None``: the scenario's or events file's
       ``[link]``); ``outages``: radio shadows, every message to or from a UAV lost for a while
       (:class:`~staghunt.flight.link.Outage`); ``plan_timeout``: a UAV that hears nothing from
