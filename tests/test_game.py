@@ -185,6 +185,55 @@ def test_certificate_is_the_same_with_its_searches_side_by_side(scenario1, reduc
         assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(one.uavs, many.uavs))
 
 
+def test_a_certificate_stopped_at_its_first_refutation_has_the_full_verdict_and_completes_to_it(scenario1, reduced):
+    """``refute=True``: every UAV's local search from the plan first, then each UAV's swarm and
+    local search in turn, up to the first deviation beyond epsilon. A plan where the leader
+    climbed out of formation is refuted by those first local searches, the leader's, with under a
+    fifth of the full certificate's searches; marked not complete. Completed with the same
+    ``work``, it is the full certificate, field for field. A plan refuted only by a swarm (the
+    local searches from the plan handed in, as the rounds of ``game`` do) is refuted too. An
+    equilibrium is searched in full either way. The same certificates on one worker and on two."""
+    from staghunt.engine import get_engine
+    from staghunt.solvers.response import CertificateWork
+
+    _, game, _ = reduced
+    engine = get_engine("numba", threads=1)
+    budget = CertifyOptions(particles=60, iterations=20)
+    wp = np.array(game.waypoints)
+    wp[0, 3:7, 2] += 6.0  # the leader climbs 6 m out of the formation mid-way
+    summed = plan(scenario1, "weighted", 1, scenario1.solver.with_(particles=100, iterations=30), engine="numba")
+
+    def fields(cert):
+        return [(u.current, u.best, u.gap, u.relative, u.evaluations, u.taken) for u in cert.uavs]
+
+    seen = {}
+    for workers in (1, 2):
+        kw = dict(runner=engine.run_swarm, workers=workers, engine=engine)
+        request = check_certify(scenario1, wp, budget, seed=4)
+        full = certify_plan(request, **kw)
+        work = CertificateWork()
+        quick = certify_plan(request, **kw, refute=True, work=work)
+        assert not full.is_equilibrium and full.complete
+        assert not quick.is_equilibrium and not quick.complete and quick.status == "deviation"
+        assert quick.uavs[quick.worst].relative > budget.epsilon
+        assert sum(u.evaluations for u in quick.uavs) < 0.2 * sum(u.evaluations for u in full.uavs)
+        assert any("searched only from the plan" in note for note in quick.notes)
+        assert certify_plan(request, **kw, work=work) is not None
+        completed = certify_plan(request, **kw, work=CertificateWork(**{k: dict(v) for k, v in vars(work).items()}))
+        assert completed.complete and fields(completed) == fields(full)
+        assert all(np.array_equal(a.deviation, b.deviation) for a, b in zip(completed.uavs, full.uavs))
+        ok = check_certify(scenario1, game.waypoints, budget, seed=4)
+        both = certify_plan(ok, **kw, refute=True), certify_plan(ok, **kw)
+        assert both[0].complete and fields(both[0]) == fields(both[1])
+        # A budget too small for local searches (under 6 K + 1 evaluations each): the swarms refute.
+        small = check_certify(scenario1, summed.waypoints, CertifyOptions(particles=20, iterations=10), seed=4)
+        late = certify_plan(small, **kw, refute=True)
+        assert not late.complete and late.uavs[0].relative > budget.epsilon
+        assert [u.evaluations for u in late.uavs] == [20 * 11, 0, 0]
+        seen[workers] = fields(quick), fields(late)
+    assert seen[1] == seen[2]
+
+
 def test_a_failing_search_side_by_side_raises_in_the_caller(scenario1, reduced):
     """An error in one of the certificate's concurrent searches reaches the caller as itself."""
     _, game, _ = reduced

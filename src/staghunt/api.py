@@ -19,7 +19,14 @@ from staghunt.scenario import Scenario, SolverSettings, load_scenario
 from staghunt.solvers import METHODS
 from staghunt.solvers.base import MethodRun, RequestError, check_seed
 from staghunt.solvers.local import LocalSearch
-from staghunt.solvers.response import Certificate, CertifyOptions, CertifyRequest, certify_plan, check_search
+from staghunt.solvers.response import (
+    Certificate,
+    CertificateWork,
+    CertifyOptions,
+    CertifyRequest,
+    certify_plan,
+    check_search,
+)
 from staghunt.solvers.swarm import Progress
 
 
@@ -111,21 +118,31 @@ def plan(
     scenario, method, seed, settings = request.scenario, request.method, request.seed, request.settings
     certify, stop, resolved = request.certify, request.stop, request.engine
     compile_s = float(resolved.prepare())
-    checks: list[tuple[np.ndarray, Certificate, float]] = []
+    checks: list[tuple[np.ndarray, Certificate, float, CertificateWork]] = []
 
-    def certificate_of(wp: np.ndarray, searched: Sequence[LocalSearch] = ()) -> Certificate:
-        """The certificate of ``wp``, made once per plan (a method may ask for several plans')."""
+    def certificate_of(wp: np.ndarray, searched: Sequence[LocalSearch] = (), refute: bool = False) -> Certificate:
+        """The certificate of ``wp``, made once per plan (a method may ask for several plans').
+        ``refute``: a certificate stopped at its first refutation will do (its verdict is the
+        full one's); one asked for in full later completes it, searching only what it did not."""
         assert certify is not None
-        for seen, cert, _ in checks:
-            if np.array_equal(seen, wp):
+        entry = next((i for i, (seen, _, _, _) in enumerate(checks) if np.array_equal(seen, wp)), None)
+        if entry is not None:
+            seen, cert, seconds, work = checks[entry]
+            if cert.complete or refute:
                 return cert
+        else:
+            seen, seconds, work = np.array(wp, copy=True), 0.0, CertificateWork()
         t = time.perf_counter()
-        cert = certify_waypoints(request, wp, certify_progress, searched)
-        checks.append((np.array(wp, copy=True), cert, time.perf_counter() - t))
+        cert = certify_waypoints(request, wp, certify_progress, searched, refute, work)
+        row = (seen, cert, seconds + time.perf_counter() - t, work)
+        if entry is None:
+            checks.append(row)
+        else:
+            checks[entry] = row
         return cert
 
     def certified(wp: np.ndarray, searched: Sequence[LocalSearch] = ()) -> bool:
-        return certificate_of(wp, searched).is_equilibrium
+        return certificate_of(wp, searched, refute=True).is_equilibrium
 
     rng = np.random.default_rng(seed)
     t0 = time.perf_counter()
@@ -147,18 +164,20 @@ def plan(
 
 def certify_waypoints(request: PlanRequest, waypoints: np.ndarray,
                       progress: Callable[[int, int, int, int], None] | None,
-                      searched: Sequence[LocalSearch] = ()) -> Certificate:
+                      searched: Sequence[LocalSearch] = (), refute: bool = False,
+                      work: CertificateWork | None = None) -> Certificate:
     """The certificate of ``waypoints`` ``(N, K, 3)`` with the checked ``request``'s certificate
     options (``request.certify``, not ``None``) and seed, run by its engine: with the compiled engine on
     several cores, the UAVs' searches run side by side, one thread each (the same certificate:
     each search has its own seed; no per-iteration barrier, which the small searches pay dearly).
-    ``searched``: local searches already made from ``waypoints`` (``certify_plan``'s)."""
+    ``searched``: local searches already made from ``waypoints``; ``refute``, ``work``:
+    ``certify_plan``'s."""
     assert request.certify is not None and request.certify_settings is not None
     engine, workers = side_by_side(request.engine)
     checked = CertifyRequest.of_checked(request.scenario, waypoints, request.certify_settings,
                                         request.certify, request.seed)
     return certify_plan(checked, progress=progress, runner=engine.run_swarm, workers=workers,
-                        engine=engine, searched=searched)
+                        engine=engine, searched=searched, refute=refute, work=work)
 
 
 def check_plan(

@@ -24,7 +24,9 @@ Layout (``N`` UAVs, ``K`` free waypoints, ``I`` iterations, ``C`` compared objec
         relative_gap, evaluations (the deviation budget), ...}]},
     equilibria (null unless a multi-start game) [each distinct certified equilibrium found:
         {start, J [N], feasible, evaluations, certificate {status, epsilon, max_relative_gap,
-         relative_gaps [N], particles, iterations}, dominated, selected, same [indices into
+         relative_gaps [N], complete (false: stopped at its first deviation beyond epsilon, the
+         gaps of the UAVs not searched to the end are those found so far), particles,
+         iterations}, dominated, selected, same [indices into
          search.candidates merged into it]}],
     selection (null unless a multi-start game) {payoff_dominant, rule, found, starts, starts_searched,
         stopped_at_first_certified (stop="certified": the starts after it left unsearched), selected_start},

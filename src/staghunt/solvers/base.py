@@ -48,7 +48,9 @@ class MethodRun:
     with the run's certificate options and not counted in the budget (``game`` certifies each
     start's equilibrium to select among them); ``None``: no certificates. Both take, after the
     plan, the local searches already made from it (:class:`~staghunt.solvers.local.LocalSearch`,
-    ``searched=``), which the certificate takes instead of making them again. ``workers``:
+    ``searched=``), which the certificate takes instead of making them again; ``certify`` also
+    takes ``refute=True``: a certificate that may stop at its first refutation
+    (:func:`~staghunt.solvers.response.certify_plan`), completed if asked for in full later. ``workers``:
     independent searches (``game``'s local check) that may run side by side, one thread each
     (``engine`` is then thread-safe)."""
 

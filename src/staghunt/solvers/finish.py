@@ -16,7 +16,10 @@ had it passed its certificate, repaired from what its certificate found.
    feasible), the team refine follows, and the result is certified again; up to
    :data:`REPAIR_ROUNDS` times, while it fails. Each certified result is one more candidate.
 
-Every step asks only certificates; the selection among the candidates is
+The certificates may stop at their first refutation (``certify_plan``'s ``refute``): a failed
+one's better replies are those found until then (the replies of the UAVs searched). On the 80
+three-start runs of ``benchmarks/equilibria.py`` (both budgets, 2026-11-27) every plan selected
+was the same as with full certificates. Every step asks only certificates; the selection among the candidates is
 :func:`staghunt.solvers.selection.select`'s.
 """
 

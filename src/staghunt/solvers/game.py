@@ -338,7 +338,8 @@ def solve_game(run: MethodRun) -> SolverOutput:
             progress(min(I, max(0, last - 1)), I, J_now.copy())
 
     def certificate(plan: np.ndarray, searched: tuple[LocalSearch, ...] = ()) -> Certificate | None:
-        return run.certify(plan, searched=searched) if run.certify is not None else None
+        """``run.certify``'s, stopped at its first refutation (only the verdict matters here)."""
+        return run.certify(plan, searched=searched, refute=True) if run.certify is not None else None
 
     def needed(J: np.ndarray) -> bool:
         """Whether a certificate of a feasible plan with costs ``J`` ``(N,)`` can matter: not if a

@@ -52,9 +52,8 @@ from __future__ import annotations
 
 import math
 import threading
-from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -65,6 +64,7 @@ from staghunt.scenario.model import Scenario, SolverSettings, check_settings
 from staghunt.solvers.requests import RequestError, check_seed
 from staghunt.solvers.local import LocalSearch, polish
 from staghunt.solvers.problem import solo_problem
+from staghunt.solvers.searches import CertificateWork, Searches
 from staghunt.solvers.swarm import Progress, SwarmRunner, run_swarm, shared_pool
 
 DEFAULT_EPSILON = 0.01
@@ -198,6 +198,9 @@ class Certificate:
 
     ``status``: ``"equilibrium"`` (every relative gap ``<= epsilon``), ``"deviation"`` (some
     UAV found a better path: see :attr:`worst`) or ``"infeasible"`` (no certificate).
+    ``complete``: ``False`` for a certificate stopped at its first refutation
+    (:func:`certify_plan`'s ``refute``): a deviation beyond ``epsilon`` was found, and the UAVs
+    not searched to the end have the gap found so far (0 and ``best`` ``None`` if none).
     """
 
     uavs: tuple[UAVGap, ...]
@@ -207,6 +210,7 @@ class Certificate:
     iterations: int
     seed: int
     notes: tuple[str, ...] = ()
+    complete: bool = True
 
     @property
     def max_relative_gap(self) -> float:
@@ -224,7 +228,7 @@ class Certificate:
 
     @property
     def is_equilibrium(self) -> bool:
-        return self.feasible and self.max_relative_gap <= self.epsilon
+        return self.feasible and self.complete and self.max_relative_gap <= self.epsilon
 
     @property
     def status(self) -> str:
@@ -268,6 +272,8 @@ def certify_plan(
     carried: Mapping[int, UAVGap] | None = None,
     engine: CostEngine = NUMPY_COSTS,
     searched: Sequence[LocalSearch] = (),
+    refute: bool = False,
+    work: CertificateWork | None = None,
 ) -> Certificate:
     """Nash gaps of the team plan of ``request`` (:func:`check_certify`, run as checked): each
     UAV's search with the request's budget, seed and swarm parameters (``c0``, ``damping``,
@@ -290,6 +296,15 @@ def certify_plan(
     plan, UAV, budget and arithmetic: :meth:`~staghunt.solvers.local.LocalSearch.stands_for`)
     is taken instead of being made again. The certificate is the same, its evaluations
     included.
+
+    ``refute``: stop at the first UAV whose searches so far find a deviation beyond
+    ``epsilon`` (every UAV's local search from the plan first, then each UAV's swarm and local
+    search in turn): the verdict "not an equilibrium" is then the full certificate's (a gap only
+    grows with more searching), at a share of its cost, and the certificate is marked not
+    ``complete``. For a search that only needs the verdict of a plan that is often refuted
+    (the rounds of ``game``). ``work``: a :class:`CertificateWork` of an earlier call with
+    the same request, whose searches are taken rather than made again (a refuted certificate
+    completed later costs only what it did not search); it is filled with this call's.
 
     On an engine of choice, with the plan's site and memory checked too:
     :func:`staghunt.analysis.certify.certify_on_engine`.
@@ -347,11 +362,16 @@ def certify_plan(
         reached = float(c.total[0, n]) if c.total_violation[0] == 0 else None
         return reached, np.array(moved[n]), used, taken
 
-    def gap_of(n: int, searched_n: tuple[float, np.ndarray, int, float, str | None],
-               locals_n: list[tuple[float | None, np.ndarray, int, int]]) -> tuple[UAVGap, str | None]:
-        best, deviation, spent, roundtrip, note = searched_n
+    def gap_of(n: int, counted: bool = True) -> tuple[UAVGap, str | None]:
+        """UAV ``n``'s gap from the searches ``work`` holds for it: its local search from the
+        plan, and (``counted``) its swarm's and the local search's from the swarm's best."""
+        made = work.swarms.get(n) if counted else None
+        best, deviation, spent, roundtrip, note = made if made is not None else (float(J[n]), wp[n].copy(), 0, 0.0, None)
         taken = 0
-        for reached, path, used, took in locals_n:  # from the plan, then from the swarm's best
+        for part in (work.from_plan.get(n), work.from_best.get(n) if counted else None):
+            if part is None:
+                continue
+            reached, path, used, took = part
             spent, taken = spent + used, taken + took
             if reached is not None and reached < best:
                 best, deviation = reached, path
@@ -360,6 +380,8 @@ def certify_plan(
             deviation = wp[n].copy()
         relative = gap / float(J[n]) if J[n] != 0 else (0.0 if gap == 0 else math.inf)
         deviation.setflags(write=False)
+        if made is None and gap == 0.0:
+            return UAVGap(names[n], float(J[n]), None, 0.0, 0.0, None, 0.0, spent, taken), None
         return UAVGap(names[n], float(J[n]), best, gap, relative, deviation, roundtrip, spent, taken), note
 
     found: list[tuple[UAVGap, str | None] | None] = [None] * len(names)
@@ -374,16 +396,27 @@ def certify_plan(
     problems = {n: solo_problem(model, wp, n, run_settings.velocity_fraction, azimuth) for n in todo}
     # Each local search has LOCAL_SHARE of its UAV's swarm budget (known before the swarm runs).
     budgets = {n: int(LOCAL_SHARE * problems[n].path_evaluations(run_settings)) for n in todo}
-    if workers > 1 and len(todo) > 1:
-        for n, (s, locals_n) in _side_by_side(shared_pool(workers, "certify"), todo, swarm, local, wp).items():
-            found[n] = gap_of(n, s, locals_n)
-    else:
-        for n in todo:
-            s = swarm(n)
-            from_swarm = [] if np.array_equal(s[1], wp[n]) else [local(n, s[1])]
-            found[n] = gap_of(n, s, [local(n, wp[n]), *from_swarm])
+    work = work if work is not None else CertificateWork()
+    searches = Searches(todo, swarm, local, wp, work, shared_pool(workers, "certify") if workers > 1 and len(todo) > 1
+                         else None)
+    counted = set(todo)
+    if not refute:
+        searches.all()
+    else:  # the local searches from the plan, then each UAV's others in turn, up to the first refuted
+        searches.from_plan()
+        if any(gap_of(n, False)[0].relative > epsilon for n in todo):
+            counted = set()
+        else:  # the closest to a refutation first
+            order = sorted(todo, key=lambda n: -gap_of(n, False)[0].relative)
+            counted = set(searches.in_turn(order, lambda n: gap_of(n)[0].relative > epsilon))
+    for n in todo:
+        found[n] = gap_of(n, n in counted)
+    unsearched = [names[n] for n in todo if n not in counted]
     gaps = [g for g, _ in found]  # type: ignore[misc]
     notes = [note for _, note in found if note is not None]  # type: ignore[misc]
+    if unsearched:
+        notes.append(f"stopped at the first deviation beyond epsilon: {', '.join(unsearched)} searched only "
+                     "from the plan (their gaps are those found so far)")
     return Certificate(
         uavs=tuple(gaps),
         epsilon=float(epsilon),
@@ -392,38 +425,8 @@ def certify_plan(
         iterations=iterations,
         seed=int(seed),
         notes=tuple(notes),
+        complete=not unsearched,
     )
-
-
-def _side_by_side(pool: ThreadPoolExecutor, todo: list[int], swarm: Callable[[int], Any],
-                  local: Callable[[int, np.ndarray], Any], wp: np.ndarray) -> dict[int, tuple[Any, list[Any]]]:
-    """:func:`certify_plan`'s searches on ``pool``, as tasks rather than one task per UAV (three
-    UAVs on two workers would leave one idle for a whole UAV): every UAV's ``swarm(n)``, the
-    longest, first; then every UAV's ``local(n, wp[n])`` (it needs no swarm); and each UAV's
-    ``local(n, best)`` from its swarm's best path as soon as that swarm ends (unless that path
-    is the plan's). The calling thread only waits. Returns, by UAV, its swarm's result and its
-    local searches' (from the plan, then from the swarm's best): the same computations as one
-    after the other."""
-    futures: list[Future] = []
-    try:
-        swarms = {pool.submit(swarm, n): n for n in todo}
-        futures.extend(swarms)
-        from_plan = {n: pool.submit(local, n, wp[n]) for n in todo}
-        futures.extend(from_plan.values())
-        ended: dict[int, Any] = {}
-        from_best: dict[int, Future] = {}
-        for f in as_completed(swarms):
-            n = swarms[f]
-            ended[n] = f.result()
-            if not np.array_equal(ended[n][1], wp[n]):
-                from_best[n] = pool.submit(local, n, ended[n][1])
-                futures.append(from_best[n])
-        return {n: (ended[n], [from_plan[n].result()] + ([from_best[n].result()] if n in from_best else []))
-                for n in todo}
-    except BaseException:
-        for f in futures:
-            f.cancel()
-        raise
 
 
 def _carried(earlier: UAVGap, current: float, path: np.ndarray) -> tuple[UAVGap, str]:

@@ -122,6 +122,7 @@ def summary(c: Candidate) -> dict[str, Any]:
             "epsilon": float(cert.epsilon),
             "max_relative_gap": float(cert.max_relative_gap),
             "relative_gaps": [float(u.relative) for u in cert.uavs],
+            "complete": bool(cert.complete),
             "particles": int(cert.particles),
             "iterations": int(cert.iterations),
         },
