@@ -88,6 +88,12 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
             assert out.flown != "first"  # replies (or the local searches before) adopted and flown
             assert any(np.array_equal(out.plan, p) for p in flown_plans)
     assert gaps[4] < gaps[0]
+    # The zigzag's certificate stops at its first refutation; its time, not a full certificate's,
+    # leaves the running estimate alone.
+    roomy = Deadline.after(600.0)
+    quick = certify_and_improve(sc, plan, "first", accept, search, options, 0, np.random.default_rng(5),
+                                engine.run_swarm, engine, engine, np.pi / 4, deadline=roomy)
+    assert quick.certificate is not None and not quick.certificate.complete and roomy.certificate_s == 0.0
     late = certify_and_improve(sc, plan, "first", accept, search, options, 4, np.random.default_rng(5),
                                engine.run_swarm, engine, engine, np.pi / 4,
                                deadline=Deadline(time.perf_counter() - 1.0))
@@ -102,14 +108,28 @@ def test_a_certificate_still_searching_at_the_deadline_is_abandoned():
 
     from staghunt.engine import NumpyEngine
 
+    from staghunt.solvers.local import local_pass
+    from staghunt.solvers.response import LOCAL_SHARE
+
     sc = load_scenario(SMALL)
-    engine = NumpyEngine()  # slow enough that the certificate cannot end in time
+    slow, fast = NumpyEngine(), get_engine("numba")  # swarms slow enough that the certificate cannot end in time
     options = CertifyOptions(400, 300, 0.01)
     search = check_search(sc.solver, options, "test")
+    # A plan no local search improves beyond epsilon: the certificate's own local searches from
+    # it (made first, compiled) refute nothing, and its swarms run.
+    model = CostModel.from_scenario(sc)
+    plan = _zigzag(sc)
+    J = fast.evaluate(model, plan[None]).total[0]
+    for _ in range(20):
+        done = local_pass(model, plan, J, int(LOCAL_SHARE * 400 * 301), 0.01, fast)
+        plan, J = done.plan, done.costs
+        if not done.gains.any():
+            break
+    assert not done.gains.any()
     deadline = Deadline.after(0.3)
     t0 = time.perf_counter()
-    out = certify_and_improve(sc, _zigzag(sc), "first", lambda p: "flown", search, options, 0,
-                              np.random.default_rng(5), engine.run_swarm, engine, engine, np.pi / 4,
+    out = certify_and_improve(sc, plan, "first", lambda p: "flown", search, options, 0,
+                              np.random.default_rng(5), slow.run_swarm, fast, fast, np.pi / 4,
                               deadline=deadline)
     took = time.perf_counter() - t0
     assert out.certificate is None and out.certificates == 0 and out.flown == "first"

@@ -168,11 +168,15 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     fixed). One UAV's better reply can widen the others' gaps, so the plan returned is the
     certified one with the least largest relative gap: never worse than the first.
 
+    Each certificate stops at its first refutation (``certify_plan``'s ``refute``: only the
+    verdict and the replies found matter here), so a failed one leaves time for the next round;
+    the plans are compared by the largest gap each certificate found.
+
     ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
     searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
     single plans and makes the local searches before a certificate. ``deadline``: a certificate
     starts only if its running estimate fits before the deadline (the estimate is updated with
-    every certificate made), and one still searching when the deadline passes is abandoned."""
+    every complete certificate made), and one still searching when the deadline passes is abandoned."""
     deadline = deadline or Deadline()
     model = CostModel.from_scenario(sub)
     local = int(LOCAL_SHARE * search.particles * (search.iterations + 1))
@@ -210,7 +214,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
         request = CertifyRequest.of_checked(sub, plan, search, options, int(rng.integers(2**31)))
         try:
             cert = certify_plan(request, runner=runner, azimuth=azimuth, workers=workers, carried=carried,
-                                engine=engine, searched=searched, progress=_watch(deadline))
+                                engine=engine, searched=searched, progress=_watch(deadline), refute=True)
         except _CertificateLate as late:  # its estimate from the share of its searches done
             took = time.perf_counter() - t0
             deadline.certificate_s = max(deadline.certificate_s, took / max(late.share, 0.1))
@@ -218,8 +222,9 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                              f"{100 * late.share:.0f} % done")
             break
         took = time.perf_counter() - t0
-        deadline.certificate_s = took if out.certificates == 0 and deadline.certificate_s == 0 else \
-            max(took, 0.5 * (deadline.certificate_s + took))
+        if cert.complete:  # a refuted certificate's time says little of a full one's
+            deadline.certificate_s = took if out.certificates == 0 and deadline.certificate_s == 0 else \
+                max(took, 0.5 * (deadline.certificate_s + took))
         out.certificates += 1
         out.spent += sum(u.evaluations - u.taken for u in cert.uavs)  # settle() counted what it took
         if best is None or cert.max_relative_gap < best[2].max_relative_gap:
@@ -253,7 +258,8 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                 again = accept(candidate)
                 if again is not None:
                     adopted = (candidate, again)
-                    carried = {n: cert.uavs[n]}  # the others fly what UAV n's search fixed
+                    # the others fly what UAV n's search fixed (if it was searched to the end)
+                    carried = {n: cert.uavs[n]} if cert.uavs[n].complete else {}
                     break
         if adopted is None:
             break

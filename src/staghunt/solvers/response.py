@@ -179,6 +179,8 @@ class UAVGap:
     - ``evaluations``: single-UAV path evaluations spent (``particles * (iterations + 1)`` in
       the swarm, plus the local searches'); ``taken``: how many of them a local search made
       before the certificate spent (``certify_plan``'s ``searched``), counted by its maker too.
+    - ``complete``: ``False`` for a UAV searched only from the plan, in a certificate stopped at
+      its first refutation (``certify_plan``'s ``refute``): its gap is the one found so far.
     """
 
     name: str
@@ -190,6 +192,7 @@ class UAVGap:
     roundtrip_error: float
     evaluations: int
     taken: int = 0
+    complete: bool = True
 
 
 @dataclass(frozen=True, eq=False)
@@ -198,7 +201,7 @@ class Certificate:
 
     ``status``: ``"equilibrium"`` (every relative gap ``<= epsilon``), ``"deviation"`` (some
     UAV found a better path: see :attr:`worst`) or ``"infeasible"`` (no certificate).
-    ``complete``: ``False`` for a certificate stopped at its first refutation
+    :attr:`complete`: ``False`` for a certificate stopped at its first refutation
     (:func:`certify_plan`'s ``refute``): a deviation beyond ``epsilon`` was found, and the UAVs
     not searched to the end have the gap found so far (0 and ``best`` ``None`` if none).
     """
@@ -210,7 +213,11 @@ class Certificate:
     iterations: int
     seed: int
     notes: tuple[str, ...] = ()
-    complete: bool = True
+
+    @property
+    def complete(self) -> bool:
+        """Whether every UAV was searched to the end (:attr:`UAVGap.complete`)."""
+        return all(u.complete for u in self.uavs)
 
     @property
     def max_relative_gap(self) -> float:
@@ -381,8 +388,8 @@ def certify_plan(
         relative = gap / float(J[n]) if J[n] != 0 else (0.0 if gap == 0 else math.inf)
         deviation.setflags(write=False)
         if made is None and gap == 0.0:
-            return UAVGap(names[n], float(J[n]), None, 0.0, 0.0, None, 0.0, spent, taken), None
-        return UAVGap(names[n], float(J[n]), best, gap, relative, deviation, roundtrip, spent, taken), note
+            return UAVGap(names[n], float(J[n]), None, 0.0, 0.0, None, 0.0, spent, taken, counted), None
+        return UAVGap(names[n], float(J[n]), best, gap, relative, deviation, roundtrip, spent, taken, counted), note
 
     found: list[tuple[UAVGap, str | None] | None] = [None] * len(names)
     todo = []
@@ -425,7 +432,6 @@ def certify_plan(
         iterations=iterations,
         seed=int(seed),
         notes=tuple(notes),
-        complete=not unsearched,
     )
 
 
