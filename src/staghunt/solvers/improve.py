@@ -165,12 +165,13 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     the plan feasible; if that keeps more than one and ``accept`` flies the plan, certify it;
     else the reply of the UAV with the largest gap that ``accept`` flies (or the next one
     beyond epsilon), and the next certificate keeps that UAV's search (the others fly what it
-    fixed). One UAV's better reply can widen the others' gaps, so the plan returned is the
-    certified one with the least largest relative gap: never worse than the first.
+    fixed, if it was searched to the end). One UAV's better reply can widen the others' gaps,
+    so the plan returned is the certified one, else the one whose certificate found the least
+    largest relative gap.
 
     Each certificate stops at its first refutation (``certify_plan``'s ``refute``: only the
     verdict and the replies found matter here), so a failed one leaves time for the next round;
-    the plans are compared by the largest gap each certificate found.
+    a refuted certificate's largest gap is the largest found until it stopped.
 
     ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
     searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
