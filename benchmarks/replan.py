@@ -253,6 +253,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         **_percentiles("sensed_latency", np.array([x["latency_s"] for x in events if x["cause"] == "sensed"]) * 1000),
         "over_deadline": count("overran") if count else None, "late": count("late") if count else None,
         "solved": len(solved), "certified": sum(x["certified"] for x in solved),
+        "event_solved": sum(not x["receding"] for x in solved),
+        "event_certified": sum(x["certified"] for x in solved if not x["receding"]),
         "sensed_solved": sum(x["cause"] == "sensed" for x in solved),
         "sensed_certified": sum(x["certified"] for x in solved if x["cause"] == "sensed"),
         "episodes_with_emergency_stop": sum(any(x["status"] == "emergency stop" for x in r["replans"]) for r in ok),

@@ -17,8 +17,8 @@ class CertificateWork:
     """The searches a certificate of one plan has made, by UAV: its swarm's result
     (``swarms``: best ``J_n``, path, evaluations, round trip, note) and its local searches
     (``from_plan``, ``from_best``: the ``J_n`` reached or ``None``, path, evaluations, those
-    taken). :func:`certify_plan` fills it; a later call for the same request takes what it holds
-    (the same computations, so the same certificate)."""
+    taken). :func:`~staghunt.solvers.response.certify_plan` fills it; a later call for the same
+    request takes what it holds (the same computations, so the same certificate)."""
 
     swarms: dict[int, Any] = field(default_factory=dict)
     from_plan: dict[int, Any] = field(default_factory=dict)
@@ -26,10 +26,10 @@ class CertificateWork:
 
 
 class Searches:
-    """:func:`certify_plan`'s searches, into ``work`` (those it holds are not made again): on
-    the calling thread, or as tasks on ``pool`` (three UAVs on two workers would leave one idle
-    for a whole UAV if a task were a UAV); the same computations either way. The calling thread
-    only waits."""
+    """:func:`~staghunt.solvers.response.certify_plan`'s searches, into ``work`` (those it holds
+    are not made again): on the calling thread, or as tasks on ``pool`` (three UAVs on two
+    workers would leave one idle for a whole UAV if a task were a UAV); the same computations
+    either way. The calling thread only waits."""
 
     def __init__(self, todo: list[int], swarm: Callable[[int], Any], local: Callable[[int, np.ndarray], Any],
                  wp: np.ndarray, work: CertificateWork, pool: ThreadPoolExecutor | None) -> None:
