@@ -94,6 +94,26 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
     quick = certify_and_improve(sc, plan, "first", accept, search, options, 0, np.random.default_rng(5),
                                 engine.run_swarm, engine, engine, np.pi / 4, deadline=roomy)
     assert quick.certificate is not None and not quick.certificate.complete and roomy.certificate_s == 0.0
+    # Time for one certificate only: its better replies are not adopted (the plan they would
+    # make could not be certified before the deadline, and adopting them is not watched by it).
+    # UAV 2 6 m out of the formation: the plan still fails its certificate after the local passes.
+
+    class OneCertificate(Deadline):
+        def fits(self, seconds: float) -> bool:
+            self.asked = getattr(self, "asked", 0) + 1
+            return self.asked == 1
+
+    far = plan.copy()
+    far[1, :, 1] += 6.0
+    made = {}
+    for name, deadline in (("one", OneCertificate(time.perf_counter() + 600.0)), ("roomy", Deadline.after(600.0))):
+        flown_plans.clear()
+        made[name] = certify_and_improve(sc, far, "first", accept, search, options, 4, np.random.default_rng(5),
+                                         engine.run_swarm, engine, engine, np.pi / 4, deadline=deadline), len(flown_plans)
+    one, flown_once = made["one"]
+    assert one.certificates == 1 and not one.certificate.is_equilibrium
+    assert "certify the better replies" in one.notes[-1]
+    assert made["roomy"][0].certificates > 1 and made["roomy"][1] > flown_once  # with time, they are adopted
     late = certify_and_improve(sc, plan, "first", accept, search, options, 4, np.random.default_rng(5),
                                engine.run_swarm, engine, engine, np.pi / 4,
                                deadline=Deadline(time.perf_counter() - 1.0))

@@ -171,7 +171,9 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
 
     Each certificate stops at its first refutation (``certify_plan``'s ``refute``: only the
     verdict and the replies found matter here), so a failed one leaves time for the next round;
-    a refuted certificate's largest gap is the largest found until it stopped.
+    a refuted certificate's largest gap is the largest found until it stopped. Its replies are
+    adopted only if a certificate still fits before the deadline (adopting them, timing the plan
+    and the local searches are not watched by the deadline).
 
     ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
     searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
@@ -231,6 +233,9 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
         if best is None or cert.max_relative_gap < best[2].max_relative_gap:
             best = (flown, plan, cert)
         if cert.is_equilibrium or round_ == rounds:
+            break
+        if not deadline.fits(deadline.certificate_s):  # an improvement that cannot be certified in time
+            out.notes.append("deadline: no time left to certify the better replies")
             break
         order = [n for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative)
                  if cert.uavs[n].relative > eps and cert.uavs[n].deviation is not None]
