@@ -408,13 +408,14 @@ def certify_plan(
                          else None)
     counted = set(todo)
     if not refute:
-        searches.all()
+        searches.in_turn(todo, None, plan_too=True)
     else:  # the local searches from the plan, then each UAV's others in turn, up to the first refuted
         searches.from_plan()
-        if any(gap_of(n, False)[0].relative > epsilon for n in todo):
+        so_far = {n: gap_of(n, False)[0].relative for n in todo}
+        if max(so_far.values(), default=0.0) > epsilon:
             counted = set()
         else:  # the closest to a refutation first
-            order = sorted(todo, key=lambda n: -gap_of(n, False)[0].relative)
+            order = sorted(todo, key=lambda n: -so_far[n])
             counted = set(searches.in_turn(order, lambda n: gap_of(n)[0].relative > epsilon))
     for n in todo:
         found[n] = gap_of(n, n in counted)

@@ -51,13 +51,6 @@ class Searches:
                 f.cancel()
             raise
 
-    def all(self) -> None:
-        """Every search: on a pool, every UAV's swarm (the longest) first, then the local
-        searches from the plan, and each from a swarm's best as soon as that swarm ends."""
-        if self.pool is None:
-            self.from_plan()
-        self.in_turn(self.todo, None, plan_too=True)
-
     def _needs_best(self, n: int) -> bool:
         return n not in self.work.from_best and not np.array_equal(self.work.swarms[n][1], self.wp[n])
 
@@ -70,10 +63,13 @@ class Searches:
         searched, in order (on a pool the tasks run side by side, the swarms, the longest,
         first; a UAV counts once it and every UAV before it in ``order`` are done, so the UAVs
         counted are the same as on one thread; the tasks not started then are cancelled, those
-        running are waited for and kept in ``work``). ``plan_too``: on a pool, the local
-        searches from the plan missing are made too, after the swarms."""
+        running are waited for and kept in ``work``). ``plan_too``: the local searches from the
+        plan missing are made too (on a pool after the swarms are submitted, the longest first;
+        on one thread before them)."""
         counted: list[int] = []
         if self.pool is None:
+            if plan_too:
+                self.from_plan()
             for n in order:
                 if n not in self.work.swarms:
                     self.work.swarms[n] = self.swarm(n)
