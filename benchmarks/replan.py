@@ -10,7 +10,11 @@
 The episodes (benchmarks/replan_episodes.py: a site vehicle or the crane's jib, then a pop-up
 2-5 s ahead of a random UAV) are built once and saved (``results/replan_episodes.json``), and
 every later run flies the same ones (``--rebuild`` builds them again), so that runs of
-different code or settings compare episode by episode.
+different code or settings compare episode by episode. A pop-up appears at its time or, sooner,
+once its UAV comes as close to it as the plan had it then (its trigger): a flight re-timed by
+the receding horizon and the link meets it as far ahead as the plan would have.
+``--timed-popups`` drops the triggers (the runs before 2026-11-27 17:00 UTC flew them so, and
+met some pop-ups on the UAV itself).
 
 Every episode is a :func:`staghunt.fly` run with the default settings: re-plans take the wall
 time they really take while the simulated world goes on (``--latency measured``; a number
@@ -61,7 +65,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
     from staghunt.world.dynamic import Link
 
     e = job["episode"]
-    wp, dyn = replan_episodes.from_plain(e)
+    wp, dyn = replan_episodes.from_plain(e, timed=job.get("timed", False))
     config = FlyConfig(wind=job.get("wind", 0.0), link=Link(*job["link"]), **job.get("config", {}))
     t0 = time.perf_counter()
     try:
@@ -70,6 +74,9 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
         return {**_meta(job), "error": str(exc)}
     wall = time.perf_counter() - t0
     v = r.verdict
+    popup = None
+    if e["events"]:  # the pop-up as it happened: at its time, or sooner when its trigger held
+        popup = {**e["events"][0], "time": next(x.time for x in r.dynamics.events if x.name == e["events"][0]["name"])}
     return {
         **_meta(job),
         "status": r.status.value, "message": r.message,
@@ -90,14 +97,16 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
         "extra_time_s": None if not math.isfinite(r.extra_time) else float(r.extra_time),
         "flight_s": float(r.times[-1]), "wall_s": wall, "link": r.link,
         "popup_uav": e["popup_uav"], "popup_lead_s": e["popup_lead_s"],
-        **(popup_reach(r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
+        "popup_appeared_s": popup["time"] if popup else None,
+        "popup_triggered": bool(popup and popup["time"] < e["events"][0]["time"]),
+        **(popup_reach(r.times, r.actual, r.velocity, popup, [u.radius for u in r.scenario.team],
                        r.scenario.vehicle.max_acceleration,
-                       1.0 / r.dynamics.sensing.rate + REFLEX_PERIOD + config.reflex_latency) if e["events"] else {}),
+                       1.0 / r.dynamics.sensing.rate + REFLEX_PERIOD + config.reflex_latency) if popup else {}),
         "popup_swerve_possible": popup_swerve(
-            r.times, r.actual, r.velocity, e["events"][0], [u.radius for u in r.scenario.team],
+            r.times, r.actual, r.velocity, popup, [u.radius for u in r.scenario.team],
             float(r.scenario.costs.min_clearance), r.scenario.vehicle.max_acceleration,
             1.0 / r.dynamics.sensing.rate + config.deadline_for(r.scenario.n_uavs) + 2 * config.link.delay)
-        if e["events"] else None,
+        if popup else None,
     }
 
 
@@ -240,6 +249,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "contacts": sum(r["contact"] for r in ok),
         "contacts_popup_within_reach": sum(r["contact"] and bool(r.get("popup_within_reach")) for r in ok),
         "popups_within_reach": sum(bool(r.get("popup_within_reach")) for r in ok),
+        "popups_triggered": sum(bool(r.get("popup_triggered")) for r in ok),
+        "popup_flown_lead_s_median": _median([r.get("popup_flown_lead_s") for r in ok]),
         **{f"{k}_breaches": sum(k in r["breaches"] for r in ok) for k in ("clearance", "separation", "ground", "ceiling")},
         "arrived_without_stop": len(clean), "episodes_with_stop": sum(r["stops"] > 0 for r in ok),
         "episodes_with_hold": sum(r["holds"] > 0 for r in ok),
@@ -276,6 +287,11 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "worst_overrun": None if worst is None else {k: worst[k] for k in ("time", "cause", "trigger", "status",
                                                                              "latency_s", "deadline_s", "phases")},
     }
+
+
+def _median(values: list[float | None]) -> float | None:
+    known = [v for v in values if v is not None]
+    return float(np.median(known)) if known else None
 
 
 def _percentiles(name: str, ms: np.ndarray) -> dict[str, float | None]:
@@ -369,6 +385,8 @@ def main() -> int:
     ap.add_argument("--solve-only", action="store_true",
                     help="only each episode's first re-plan, on the plan, one at a time with the engine's adaptive "
                     "threads (the latency on the whole machine); writes replan_solve.json")
+    ap.add_argument("--timed-popups", action="store_true",
+                    help="each pop-up appears at its time only, without its trigger (as the code before triggers flew them)")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a FlyConfig setting for every episode, e.g. --set replan_rate=0 (repeatable)")
     args = ap.parse_args()
@@ -390,6 +408,9 @@ def main() -> int:
     have: list[dict[str, Any]] = []
     plans: dict[str, Any] = {}
     if args.episodes_file.exists() and not args.rebuild:
+        added = replan_episodes.add_triggers_to_file(args.episodes_file, started)
+        if added:
+            print(f"gave {added} saved pop-ups their trigger", file=sys.stderr)
         have, plans = replan_episodes.load(args.episodes_file)
     if any(sum(e["kind"] == k for e in have) < n for k, n in counts.items()):
         print("building the episodes", file=sys.stderr)
@@ -404,7 +425,7 @@ def main() -> int:
     link = (args.link_delay, args.link_jitter, args.link_loss)
     jobs: list[dict[str, Any]] = []
     for e in pick:
-        base = {"episode": e, "threads": threads, "config": overrides, "link": link}
+        base = {"episode": e, "threads": threads, "config": overrides, "link": link, "timed": args.timed_popups}
         if e["kind"] != "scenario2" or e["episode"] < args.episodes:
             jobs.append(base)
         if e["kind"] == "scenario2" and e["episode"] < args.wind_episodes:
@@ -426,6 +447,7 @@ def main() -> int:
     kinds = sorted({r["kind"] for r in rows})
     summary = {k: summarise([r for r in rows if r["kind"] == k]) for k in kinds}
     meta = {"jobs": args.jobs, "threads_per_solve": threads or "adaptive", "wall_s": wall, "link": link,
+            "popups": "timed" if args.timed_popups else "triggered",
             "latency": args.latency, "settings": overrides, "loadavg_median": float(np.median(loads)) if loads else None,
             "loadavg_range": [min(loads), max(loads)] if loads else None, "cpus": os.cpu_count(), "plans": plans}
     name = "replan" + (f"_{args.tag}" if args.tag else "")

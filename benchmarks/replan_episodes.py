@@ -8,7 +8,9 @@ again.
   on a straight line across the site, timed to reach the route within +-2 s of the team; the
   plan is made sound against it before take-off; then a cylinder of radius 2-6 m appears on a
   random UAV's route 2-5 s ahead of it (the UAV would touch it 2-5 s after it appears; at a
-  random time in the first 60 % of the flight);
+  random time in the first 60 % of the flight), or sooner, as soon as that UAV comes as close to
+  it as it was then on the plan (the event's trigger: the flight, re-timed by the receding
+  horizon and the link, meets it as far ahead as the plan would have);
 - **site_wedge** (8 UAVs), planned once at its own setting (400 x 300, seed 1), the same way: the tower
   crane's jib with its load (a box 3 m wide from 10 to 35 m above ground, 55-70 m long) slews
   into the route (3-8 deg/s, timed to sweep the route when the team is near), plus a pop-up
@@ -48,7 +50,8 @@ def _popup(scenario: Any, ref: Any, rng: np.random.Generator, radius: tuple[floa
     """A cylinder on a random UAV's route that the UAV would touch 2-5 s after it appears (its
     reference enters the cylinder grown by the body radius that long after the appearance),
     appearing at a random time in the first 60 % of the flight, clear of every UAV at that
-    time (by 2 m) and of every goal (by 5 m)."""
+    time (by 2 m) and of every goal (by 5 m); or sooner, once that UAV comes as close to it as
+    it is then (:func:`_trigger`)."""
     from staghunt.world import Cylinder
     from staghunt.world.dynamic import Event
 
@@ -77,8 +80,62 @@ def _popup(scenario: Any, ref: Any, rng: np.random.Generator, radius: tuple[floa
         gap = np.hypot(now[:, 0] - p[0], now[:, 1] - p[1]) - R - r
         to_goal = np.hypot(goals[:, 0] - p[0], goals[:, 1] - p[1]) - R - r
         if gap.min() > 2.0 and to_goal.min() > 5.0:
-            return Event(t, "appear", name, Cylinder(float(p[0]), float(p[1]), R, name)), n, float(first - t)
+            shape = Cylinder(float(p[0]), float(p[1]), R, name)
+            lead = float(first - t)
+            return Event(t, "appear", name, shape, trigger=_trigger(scenario, ref, n, shape, lead)), n, lead
     raise RuntimeError("no pop-up position found")
+
+
+def _trigger(scenario: Any, ref: Any, n: int, shape: Any, lead: float) -> Any:
+    """The trigger of a pop-up that UAV ``n`` of the plan ``ref`` would touch ``lead`` s after it
+    appears: the UAV within the horizontal distance from the pop-up's outline that it has, on
+    ``ref``, ``lead`` s before it first enters it (its body touching it; at take-off at the
+    latest)."""
+    from staghunt.world.dynamic import Trigger
+
+    grid = np.arange(0.0, ref.arrival, 0.05)
+    xy = ref.state(grid)[0][n, :, :2]
+    d = np.hypot(xy[:, 0] - shape.x, xy[:, 1] - shape.y)
+    inside = d < shape.radius + scenario.team[n].radius
+    k = int(np.searchsorted(grid, max(0.0, grid[np.argmax(inside)] - lead) - 1e-9)) if inside.any() else 0
+    return Trigger(scenario.team[n].name, float(d[k] - shape.radius))
+
+
+def add_triggers(episodes: list[dict[str, Any]]) -> list[int]:
+    """Give the pop-ups of episodes saved before triggers (code before 2026-11-27 17:00 UTC) the
+    trigger :func:`build` gives them now (:func:`_trigger` with the saved lead), on the plan the
+    flight takes off with (the episode's, made sound again by
+    :func:`staghunt.flight.offline.plan_around`, as ``fly`` does). Returns the episodes given
+    one whose take-off plan is not the one their pop-up was placed on (its UAV enters the
+    pop-up more than a sample away from the saved lead after the pop-up's time: ``fly``'s
+    take-off has changed since the build); their trigger is on the take-off plan."""
+    from dataclasses import replace
+
+    import staghunt
+    from staghunt.api import check_plan
+    from staghunt.flight import FlyConfig
+    from staghunt.flight.offline import plan_around
+    from staghunt.world.dynamic import Dynamics
+
+    moved: list[int] = []
+    scenarios: dict[str, Any] = {}
+    for e in episodes:
+        if not e["events"] or "trigger" in e["events"][0]:
+            continue
+        sc = scenarios.setdefault(e["kind"], staghunt.load_scenario(e["kind"]))
+        wp, dyn = from_plain(e)
+        known = Dynamics(dyn.moving, dyn.jibs)  # the plan is made sound against the known motion alone
+        request = check_plan(replace(sc, dynamics=known), "game", 1, sc.solver, "auto")
+        _, ref, _, _ = plan_around(request, known, wp, FlyConfig())
+        v, n = e["events"][0], e["popup_uav"]
+        grid = np.arange(v["time"], ref.arrival, 0.05)
+        xy = ref.state(grid)[0][n, :, :2]
+        inside = np.hypot(xy[:, 0] - v["x"], xy[:, 1] - v["y"]) < v["radius"] + sc.team[n].radius
+        if not inside.any() or abs(grid[np.argmax(inside)] - v["time"] - e["popup_lead_s"]) > 0.051:
+            moved.append(e["episode"])
+        trig = _trigger(sc, ref, n, dyn.events[0].shape, e["popup_lead_s"])
+        v["trigger"] = {"uav": trig.uav, "within": trig.within}
+    return moved
 
 
 def _truck(scenario: Any, ref: Any, rng: np.random.Generator) -> Any:
@@ -164,14 +221,17 @@ def to_plain(kind: str, episode: int, waypoints: np.ndarray, dyn: Any, uav: int,
                   "counter": j.counter, "start_time": j.start_time, "repeat": j.repeat,
                   "agl": list(j.agl) if j.agl else None} for j in dyn.jibs],
         "events": [{"time": e.time, "kind": e.kind, "name": e.name, "x": e.shape.x, "y": e.shape.y,
-                    "radius": e.shape.radius} for e in dyn.events if isinstance(e.shape, Cylinder)],
+                    "radius": e.shape.radius,
+                    **({"trigger": {"uav": e.trigger.uav, "within": e.trigger.within}} if e.trigger else {})}
+                   for e in dyn.events if isinstance(e.shape, Cylinder)],
         "popup_uav": uav, "popup_lead_s": lead, "plan_windows": windows,
     }
 
 
-def from_plain(e: dict[str, Any]) -> tuple[np.ndarray, Any]:
+def from_plain(e: dict[str, Any], timed: bool = False) -> tuple[np.ndarray, Any]:
     """The plan ``(N, K, 3)`` and the :class:`~staghunt.world.dynamic.Dynamics` of a plain episode
-    (built with constructors that the code of 2026-11 has too)."""
+    (built with constructors that the code of 2026-11 has too); ``timed``: the pop-up appears at
+    its time only, without its trigger (as the code before triggers flew it)."""
     from staghunt.world import Cylinder
     from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib
 
@@ -180,9 +240,16 @@ def from_plain(e: dict[str, Any]) -> tuple[np.ndarray, Any]:
     jibs = tuple(SlewingJib(j["name"], tuple(j["pivot"]), j["length"], j["width"], j["base"], j["top"], j["angle_from"],
                             j["angle_to"], j["rate"], j["counter"], j["start_time"], j["repeat"],
                             tuple(j["agl"]) if j["agl"] else None) for j in e["jibs"])
-    events = tuple(Event(v["time"], v["kind"], v["name"], Cylinder(v["x"], v["y"], v["radius"], v["name"]))
+    events = tuple(Event(v["time"], v["kind"], v["name"], Cylinder(v["x"], v["y"], v["radius"], v["name"]),
+                         **({"trigger": _plain_trigger(v["trigger"])} if "trigger" in v and not timed else {}))
                    for v in e["events"])
     return np.array(e["waypoints"], dtype=float), Dynamics(moving, jibs, events)
+
+
+def _plain_trigger(v: dict[str, Any]) -> Any:
+    from staghunt.world.dynamic import Trigger
+
+    return Trigger(v["uav"], v["within"])
 
 
 def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]:
@@ -238,3 +305,17 @@ def save(path: Path, episodes: list[dict[str, Any]], plans: dict[str, Any], star
 def load(path: Path) -> tuple[list[dict[str, Any]], dict[str, Any]]:
     data = json.loads(path.read_text())
     return data["episodes"], data["plans"]
+
+
+def add_triggers_to_file(path: Path, started: provenance.Started) -> int:
+    """:func:`add_triggers` on the saved episodes of ``path``, written back with the build's own
+    stamp kept and the addition's (``started``) under ``triggers_added``, with the episodes
+    whose take-off plan moved. Returns how many pop-ups were given a trigger (0: the file is
+    left as it is)."""
+    data = json.loads(path.read_text())
+    todo = sum(bool(e["events"]) and "trigger" not in e["events"][0] for e in data["episodes"])
+    if todo:
+        moved = add_triggers(data["episodes"])
+        data["triggers_added"] = provenance.stamped(started, {"pop-ups": todo, "take-off plan moved": moved})
+        path.write_text(json.dumps(data) + "\n")
+    return todo

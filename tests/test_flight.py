@@ -17,7 +17,7 @@ from staghunt.flight.vehicles import DrydenGust
 from staghunt.scenario.dynamics import load_events
 from staghunt.task import VehicleLimits
 from staghunt.world import Cylinder
-from staghunt.world.dynamic import Dynamics, MovingCylinder, SlewingJib
+from staghunt.world.dynamic import Dynamics, MovingCylinder, SlewingJib, Trigger
 
 pytest.importorskip("rotorpy")
 
@@ -282,6 +282,12 @@ BAD_EVENTS = [
     ("[[jibs]]\nname = 'j'\npivot = [50, 5]\nlength = 30\nwidth = 2\nbase = 2\nheight = 20\n"
      "angle_from = 0\nangle_to = 90\nrate = 5\n", "leaves the site"),
     ("[[events]]\ntime = 0.0\nkind = 'appear'\nx = 5.0\ny = 15.0\nradius = 2.0\n", "on top of UAV1"),
+    ("[[events]]\ntime = 9.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\n"
+     "trigger = { uav = 'UAV9', within = 5.0 }\n", "no UAV named 'UAV9'"),
+    ("[[events]]\ntime = 9.0\nkind = 'appear'\nx = 20.0\ny = 20.0\nradius = 2.0\n"
+     "trigger = { uav = 'UAV1', within = -5.0 }\n", "trigger.within"),
+    ("[[events]]\ntime = 9.0\nkind = 'disappear'\nname = 'crane 1'\ntrigger = { uav = 'UAV1', within = 5.0 }\n",
+     "trigger"),
     ("events = 3\n", "events"),
     ("[link]\ndelay = -0.1\n", "link.delay"),
     ("[link]\nloss = 1.0\n", "link.loss"),
@@ -311,7 +317,8 @@ def test_documented_and_example_events_files_load(tmp_path):
     f.write_text(block, encoding="utf-8")
     scenario = load_scenario("scenario2")
     doc = load_events(f, scenario)
-    assert len(doc.events) == 3 and len(doc.moving) == 1 and len(doc.jibs) == 1
+    assert len(doc.events) == 4 and len(doc.moving) == 1 and len(doc.jibs) == 1
+    assert [e.trigger for e in doc.events if e.trigger is not None] == [Trigger("UAV2", 8.0)]
     assert (doc.link.delay, doc.link.jitter, doc.link.loss) == (0.1, 0.03, 0.01)
     example = load_events(root / "examples" / "events_popup.toml", scenario)
     assert example.events[0].time == 6.0 and example.jibs[0].name == "crane 1 jib"

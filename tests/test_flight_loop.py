@@ -20,7 +20,7 @@ from staghunt.safety import BreachKind, Severity
 from staghunt.safety.measure import moving_clearance
 from staghunt.trajectory.quintic import Reference, stop_piece, timed_path
 from staghunt.world import Cylinder
-from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib
+from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib, Trigger
 
 pytest.importorskip("rotorpy")
 
@@ -82,6 +82,28 @@ def test_popup_on_the_next_leg_is_swerved_round_after_the_latency_and_the_link(p
     after = r.times >= 4.0  # the true clearance to the pop-up after it appeared, in the simulated flight
     d = np.hypot(r.actual[:, after, 0] - shape.x, r.actual[:, after, 1] - shape.y) - shape.radius - 0.5
     assert d.min() > r.required_clearance and r.status is FlightStatus.ARRIVED
+
+
+def test_a_triggered_popup_appears_when_its_uav_comes_within_its_distance(calm):
+    """The pop-up's time lies beyond the flight; its trigger (UAV1 within 6 m) makes it appear
+    at the first sensor tick (10 Hz) UAV1 truly is that close, however the flight was timed.
+    The result holds it at that time, and the team swerves round it."""
+    _, shape = _popup(calm)
+    dyn = Dynamics(events=(Event(1000.0, "appear", "popup", shape, trigger=Trigger("UAV1", 6.0)),))
+    r = fly(SMALL, events=dyn, seed=0, config=FIXED)
+    (e,) = r.dynamics.events
+    ticks = np.arange(0, r.times.size, 10)  # the sensor's ticks among the 100 Hz samples
+    d = np.hypot(r.actual[0, ticks, 0] - shape.x, r.actual[0, ticks, 1] - shape.y) - shape.radius
+    k = int(np.argmax(d <= 6.0))  # the first tick within 6 m
+    assert d[k] <= 6.0 and e.trigger is None and e.time == pytest.approx(r.times[ticks[k]])
+    rec = r.replans[0]
+    assert rec.cause is Cause.SENSED and "popup" in rec.trigger
+    assert e.time < rec.time <= e.time + WORST + 0.1 + 1e-9  # the sighting comes over the link, at a tick
+    assert r.status is FlightStatus.ARRIVED and r.verdict.safe
+    never = Dynamics(events=(Event(1000.0, "appear", "far", Cylinder(30.0, 2.0, 1.0, "far"),
+                                   trigger=Trigger("UAV2", 1.0)),))
+    quiet = fly(SMALL, events=never, seed=0, config=FIXED)  # UAV2 never comes within 1 m of it
+    assert quiet.dynamics.events[0].time == 1000.0 and not quiet.replans
 
 
 def test_a_replan_slower_than_its_deadline_flies_the_old_plan_meanwhile(calm):

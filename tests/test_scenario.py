@@ -450,6 +450,22 @@ def test_round_trip(name: str) -> None:
         np.testing.assert_array_equal(getattr(again.formation, field), getattr(s.formation, field))
 
 
+def test_round_trip_of_a_triggered_event_and_its_errors() -> None:
+    from staghunt.world.dynamic import Trigger
+
+    d = valid()
+    d["events"] = [{"time": 30.0, "kind": "appear", "x": 60.0, "y": 60.0, "radius": 2.0,
+                    "trigger": {"uav": "B", "within": 7.5}}]
+    s = scenario_from_dict(d, name="t", base_dir=None)
+    assert s.dynamics.events[0].trigger == Trigger("B", 7.5)
+    out = scenario_to_dict(s)
+    assert out["events"][0]["trigger"] == {"uav": "B", "within": 7.5}
+    assert scenario_from_dict(out, name="t", base_dir=None).dynamics == s.dynamics
+    d["events"][0]["trigger"]["uav"] = "C"
+    with pytest.raises(ScenarioError, match=r"events\[0\]\.trigger\.uav.*no UAV named 'C'; the team: A, B"):
+        scenario_from_dict(d, name="t", base_dir=None)
+
+
 def test_round_trip_unset_desired_height() -> None:
     s = scenario_from_dict(valid(), name="t", base_dir=None)
     d = scenario_to_dict(s)

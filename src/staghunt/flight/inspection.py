@@ -169,6 +169,8 @@ def fly_inspection(scenario: Scenario, timeline: Timeline, events: tuple[Event, 
     ``appear``, ``disappear``); one ``numpy.random.Generator`` from ``seed`` drives the wind."""
     from staghunt.flight.vehicles import DrydenGust, SimulatedTeam
 
+    if any(e.trigger is not None for e in events):
+        raise ValueError("an inspection's obstacles appear at their time: a trigger is flown by `staghunt fly` only")
     started = time.perf_counter()
     config = config if config is not None else InspectConfig()
     insp = scenario.inspection

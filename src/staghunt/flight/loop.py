@@ -81,7 +81,7 @@ def build(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig,
                        config.reflex_latency, scenario.costs.safe_distance, scenario.costs.min_clearance, radii)
                for n in range(scenario.n_uavs)]
     team = SimulatedTeam(starts, dt, wind, scenario.vehicle, [u.radius for u in scenario.team])
-    return Parts(team, Sensor(dyn, scenario.n_uavs, noise_rng), radio,
+    return Parts(team, Sensor(dyn, [u.name for u in scenario.team], noise_rng), radio,
                  OnboardTeam(members), station)
 
 
@@ -288,6 +288,7 @@ def fly(source: Any, *, progress: Callable[[float, float], None] | None = None, 
     flight, parts = simulate(scenario, dyn, ref0, config, resolved, rng.spawn(1)[0], progress,
                              request.certify_search, config.outages)
     station = parts.station
+    dyn = parts.sensor.flown()  # the events as they happened: a triggered appear at its time
     verdict, arrival, status, message = verdict_of(scenario, dyn, flight, station.message)
     err = np.linalg.norm(flight["actual"] - flight["reference"], axis=-1)
     for a in (*flight.values(), arrival, err):

@@ -4,6 +4,7 @@ that appeared within each UAV's sensing range (docs/model.md, section 8)."""
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Sequence
 
 import numpy as np
 
@@ -24,11 +25,14 @@ def horizontal_distance(shape: Cylinder | Prism, xy: np.ndarray) -> np.ndarray:
 class Sensor:
     """What the UAVs sense of ``dyn``: :meth:`measure` their states, :meth:`detect` the obstacles
     that appeared within ``dyn.sensing.range`` of each (remembered once seen, until they are
-    gone). Noise is drawn from ``rng``."""
+    gone). Noise is drawn from ``rng``. ``uavs``: the team's names (an appear's trigger names
+    one); the events as they happened: :meth:`flown`."""
 
-    def __init__(self, dyn: Dynamics, n_uavs: int, rng: np.random.Generator) -> None:
+    def __init__(self, dyn: Dynamics, uavs: Sequence[str], rng: np.random.Generator) -> None:
         self.dyn, self.rng = dyn, rng
-        self.seen: list[dict[str, Cylinder | Prism]] = [{} for _ in range(n_uavs)]
+        self.index = {name: n for n, name in enumerate(uavs)}
+        self.seen: list[dict[str, Cylinder | Prism]] = [{} for _ in uavs]
+        self.appeared: dict[int, float] = {}  # appear event (its index in dyn.events) -> when it appeared
 
     def measure(self, pos: np.ndarray, vel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Measured positions and velocities ``(N, 3)`` of the true ones."""
@@ -39,14 +43,35 @@ class Sensor:
             vel = vel + self.rng.normal(0.0, s.velocity_noise, vel.shape)
         return pos, vel
 
+    def _appear(self, t: float, pos: np.ndarray) -> None:
+        """The appear events that happen by ``t``: at their time, or sooner at the first tick
+        their trigger's UAV (true positions ``(N, 3)``) is within its distance."""
+        for i, e in enumerate(self.dyn.events):
+            if e.kind != "appear" or e.shape is None or i in self.appeared:
+                continue
+            if e.time <= t:
+                self.appeared[i] = e.time
+            elif e.trigger is not None:
+                n = self.index[e.trigger.uav]
+                if horizontal_distance(e.shape, pos[n:n + 1, :2])[0] <= e.trigger.within:
+                    self.appeared[i] = t
+
     def detect(self, t: float, pos: np.ndarray) -> list[dict[str, Cylinder | Prism]]:
         """Per UAV, every appeared obstacle it has seen by ``t`` (its true position ``(N, 3)``
         within the sensing range of it), less those gone."""
+        self._appear(t, pos)
         gone = self.dyn.removed(t)
-        for e in self.dyn.events:
-            if e.kind != "appear" or e.time > t or e.shape is None or e.name in gone:
+        for i, e in enumerate(self.dyn.events):
+            if i not in self.appeared or e.shape is None or e.name in gone:
                 continue
             near = horizontal_distance(e.shape, pos[:, :2]) <= self.dyn.sensing.range
             for n in np.flatnonzero(near):
                 self.seen[n].setdefault(e.name, e.shape)
         return [{k: v for k, v in s.items() if k not in gone} for s in self.seen]
+
+    def flown(self) -> Dynamics:
+        """``dyn`` as it happened: every triggered appear that happened at the time it did, and
+        no trigger left (one that never held keeps its time)."""
+        events = [replace(e, time=self.appeared.get(i, e.time), trigger=None) if e.trigger is not None else e
+                  for i, e in enumerate(self.dyn.events)]
+        return replace(self.dyn, events=tuple(sorted(events, key=lambda e: e.time)))

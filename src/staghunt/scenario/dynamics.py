@@ -7,14 +7,14 @@ from __future__ import annotations
 
 import math
 import os
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Sequence
 
 import numpy as np
 
 from staghunt.scenario.errors import ScenarioError, fmt
 from staghunt.scenario.shapes import check_polygon, make_prism, nofly_zone
 from staghunt.world import Cylinder, World
-from staghunt.world.dynamic import Dynamics, Event, Link, MovingCylinder, Sensing, SlewingJib
+from staghunt.world.dynamic import Dynamics, Event, Link, MovingCylinder, Sensing, SlewingJib, Trigger
 
 if TYPE_CHECKING:
     from staghunt.scenario.model import Scenario
@@ -46,11 +46,12 @@ def _jib(t: "JibTable", i: int, world: World) -> SlewingJib:
     return jib
 
 
-def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: str = "",
+def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, uavs: Sequence[str], prefix: str = "",
                          first_popup: int = 1) -> tuple[Dynamics, bool, bool]:
-    """The :class:`Dynamics` of the checked tables of ``f`` in ``world``, and whether ``f``
-    gave a ``[sensing]`` and a ``[link]`` table. ``prefix`` goes before key paths in errors; appeared obstacles
-    without a name are called ``pop-up <i>`` from ``first_popup`` on."""
+    """The :class:`Dynamics` of the checked tables of ``f`` in ``world`` with the team's UAVs
+    called ``uavs`` (a trigger names one), and whether ``f`` gave a ``[sensing]`` and a
+    ``[link]`` table. ``prefix`` goes before key paths in errors; appeared obstacles without a
+    name are called ``pop-up <i>`` from ``first_popup`` on."""
     moving = []
     for i, m in enumerate(f.moving):
         for k, (x, y) in enumerate(m.path):
@@ -89,7 +90,13 @@ def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, prefix: s
             poly = check_polygon(e.polygon, f"{key}.polygon")
             shape = (nofly_zone(poly, name) if e.height is None
                      else make_prism(poly, e.base or 0.0, e.height, world.terrain, name))
-        events.append(Event(e.time, "appear", name, shape))
+        trigger = None
+        if e.trigger is not None:
+            if e.trigger.uav not in uavs:
+                raise ScenarioError(f"no UAV named {e.trigger.uav!r}; the team: {', '.join(uavs)}",
+                                    f"{key}.trigger.uav")
+            trigger = Trigger(e.trigger.uav, e.trigger.within)
+        events.append(Event(e.time, "appear", name, shape, trigger=trigger))
     sensing = Sensing(**f.sensing.model_dump()) if f.sensing is not None else Sensing()
     link = Link(**f.link.model_dump()) if f.link is not None else Link()
     dyn = Dynamics(tuple(moving), tuple(jibs), tuple(sorted(events, key=lambda e: e.time)), sensing, link)
@@ -169,7 +176,8 @@ def load_events(path: str | os.PathLike[str], scenario: "Scenario") -> Dynamics:
         f = validate(data, EventsFile)
         own = scenario.dynamics
         first = 1 + sum(1 for e in own.events if e.kind == "appear")
-        extra, sensing_given, link_given = dynamics_from_tables(f, scenario.world, first_popup=first)
+        extra, sensing_given, link_given = dynamics_from_tables(f, scenario.world, [u.name for u in scenario.team],
+                                                                first_popup=first)
         check_take_off(extra, scenario.team, scenario.world)
         dyn = own.merged(extra, sensing_given, link_given)
         check_names(dyn, scenario.world)
@@ -206,6 +214,8 @@ def dynamics_to_dict(dyn: Dynamics) -> dict[str, Any]:
                 row["polygon"] = [list(v) for v in e.shape.polygon]
                 if e.shape.agl is not None:
                     row.update(base=e.shape.agl[0], height=e.shape.agl[1])
+            if e.trigger is not None:
+                row["trigger"] = {"uav": e.trigger.uav, "within": e.trigger.within}
             rows.append(row)
         out["events"] = rows
     s = dyn.sensing

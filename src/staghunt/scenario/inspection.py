@@ -284,6 +284,9 @@ def check_inspection_events(scenario: Any, events: Sequence[Any], source: str = 
     lost: set[str] = set()
     out = []
     for i, e in enumerate(events):
+        if getattr(e, "trigger", None) is not None:
+            raise ScenarioError("an inspection's obstacles appear at their time: a trigger is flown by "
+                                "`staghunt fly` only", f"events[{i}].trigger")
         if e.kind == "uav_lost":
             if e.name not in names:
                 raise ScenarioError(f"no UAV named {e.name!r}; the team: {', '.join(names)}", f"events[{i}].uav")

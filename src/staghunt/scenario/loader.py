@@ -411,7 +411,7 @@ def scenario_from_dict(
         formation = _formation(f.formation, team, terrain)
     from staghunt.scenario.dynamics import check_names, check_take_off, dynamics_from_tables
 
-    dynamics, _, _ = dynamics_from_tables(f, world)
+    dynamics, _, _ = dynamics_from_tables(f, world, [u.name for u in team])
     check_names(dynamics, world)
     check_take_off(dynamics, team, world)
     from staghunt.scenario.inspection import inspection_from_tables

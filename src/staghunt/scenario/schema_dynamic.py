@@ -66,10 +66,18 @@ class JibTable(Solid):
         return self
 
 
+class TriggerTable(Table):
+    """An ``appear`` that happens before its ``time`` once a UAV comes close to the obstacle."""
+
+    uav: Annotated[str, Field(pattern=r"\S", description="the UAV's name")]
+    within: Annotated[float, Field(gt=0, le=1e4, description="m, horizontally from the obstacle's outline")]
+
+
 class EventTable(Table):
     """A change at ``time``: ``appear`` (a cylinder ``x``, ``y``, ``radius`` through the whole
     height band, or a ``polygon``, a no-fly zone unless ``height`` makes it a prism from
-    ``base``), unknown to the plan until a UAV senses it; ``disappear`` (the obstacle ``name``);
+    ``base``), unknown to the plan until a UAV senses it, and with a ``trigger`` sooner, as soon
+    as the UAV it names comes ``within`` metres of it; ``disappear`` (the obstacle ``name``);
     for an inspection, ``uav_lost`` (the UAV ``uav`` lands where it is) and ``objective`` (an
     objective table added in flight)."""
 
@@ -85,10 +93,11 @@ class EventTable(Table):
     height: Optional[Annotated[float, Field(gt=0, description="top, m above ground (polygon); absent: a no-fly zone")]] = None
     uav: Optional[Annotated[str, Field(pattern=r"\S", description="uav_lost: the UAV's name")]] = None
     objective: Optional[ObjectiveTable] = Field(None, description="objective: the objective added")
+    trigger: Optional[TriggerTable] = Field(None, description="appear: sooner than time, once a UAV is this close")
 
     @model_validator(mode="after")
     def _shape(self) -> "EventTable":
-        given = {k for k in ("x", "y", "radius", "polygon", "base", "height", "name", "uav", "objective")
+        given = {k for k in ("x", "y", "radius", "polygon", "base", "height", "name", "uav", "objective", "trigger")
                  if getattr(self, k) is not None}
         own = {"uav_lost": "uav", "objective": "objective"}
         if self.kind in own:
@@ -109,6 +118,7 @@ class EventTable(Table):
                 raise fail(sorted(given)[0], "not used with kind = 'disappear'")
             return self
         circle = {"x", "y", "radius"}
+        given -= {"trigger"}
         if self.polygon is None:
             missing = sorted(circle - given)
             if missing:

@@ -159,17 +159,31 @@ class SlewingJib:
 
 
 @dataclass(frozen=True)
+class Trigger:
+    """What makes an ``appear`` happen before its time: the UAV called ``uav`` coming within
+    ``within`` metres (horizontally, its true position) of the obstacle's outline, as the
+    sensors' feedback sees it (every tick of :attr:`Sensing.rate`). A test of how the team
+    answers an obstacle met a given distance ahead, however the flight was re-timed."""
+
+    uav: str
+    within: float
+
+
+@dataclass(frozen=True)
 class Event:
     """A change at ``time`` (s): ``appear`` adds ``shape`` (a :class:`Cylinder` or
-    :class:`Prism`), ``disappear`` removes the obstacle called ``name`` (static, moving or
-    appeared); for an inspection, ``uav_lost`` (the UAV called ``name`` lands where it is) and
-    ``objective`` (``objective``: the objective's table, as plain data, added to the inspection)."""
+    :class:`Prism`), at ``time`` or, with a ``trigger``, as soon as the trigger holds if that is
+    sooner; ``disappear`` removes the obstacle called ``name`` (static, moving or appeared); for
+    an inspection, ``uav_lost`` (the UAV called ``name`` lands where it is) and ``objective``
+    (``objective``: the objective's table, as plain data, added to the inspection). A flight's
+    result holds its events as flown: each triggered one at the time it appeared."""
 
     time: float
     kind: Literal["appear", "disappear", "uav_lost", "objective"]
     name: str
     shape: Cylinder | Prism | None = None
     objective: dict | None = None
+    trigger: Trigger | None = None
 
 
 @dataclass(frozen=True)
