@@ -248,6 +248,11 @@ def check_flight(
     if task_events:  # the task layer's events: only an inspection's flight has work to re-allocate
         raise FlightInputError(f"events: a {task_events[0].kind} event needs an inspection to re-allocate "
                                "(give objectives: --objectives FILE)")
+    names = [u.name for u in scenario.team]
+    for e in dyn.events:
+        if e.trigger is not None and (e.trigger.uav not in names or not 0 < e.trigger.within < math.inf):
+            raise FlightInputError(f"events: {e.name}'s trigger needs a UAV of the team ({', '.join(names)}) and a "
+                                   f"distance > 0 m; got {e.trigger.uav!r} within {e.trigger.within!r}")
     if config.link is not None:
         dyn = replace(dyn, link=config.link)
     scenario = replace(scenario, dynamics=dyn)
