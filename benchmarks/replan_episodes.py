@@ -105,10 +105,10 @@ def add_triggers(episodes: list[dict[str, Any]]) -> list[int]:
     """Give the pop-ups of episodes saved before triggers (code before 2026-11-27 17:00 UTC) the
     trigger :func:`build` gives them now (:func:`_trigger` with the saved lead), on the plan the
     flight takes off with (the episode's, made sound again by
-    :func:`staghunt.flight.offline.plan_around`, as ``fly`` does). Returns the episodes given
-    one whose take-off plan is not the one their pop-up was placed on (its UAV enters the
+    :func:`staghunt.flight.offline.plan_around`, as ``fly`` does). Returns the numbers of the
+    episodes whose take-off plan is not the one their pop-up was placed on (its UAV enters the
     pop-up more than a sample away from the saved lead after the pop-up's time: ``fly``'s
-    take-off has changed since the build); their trigger is on the take-off plan."""
+    take-off has changed since the build); their triggers are on the take-off plan too."""
     from dataclasses import replace
 
     import staghunt
