@@ -57,3 +57,34 @@ def test_popup_swerve_is_the_sideways_reach_in_the_time_left(x: float, y: float,
     times, actual, velocity = _flight([-4.0, 0.0], [4.0, -4.0])
     popup = {"time": 1.0, "x": x, "y": y, "radius": 2.0}
     assert popup_swerve(times, actual, velocity, popup, [1.0, 1.0], 1.0, 3.0, 0.5) is possible
+
+
+def test_a_popup_trigger_is_where_its_uav_is_lead_seconds_before_contact() -> None:
+    """The episodes' trigger (replan_episodes._trigger): UAV1 at 4 m/s along x from 0 meets a
+    pop-up of radius 2 m at x = 20 (body 1 m) when x = 17, at t = 4.25 s; 2 s before, at x = 9,
+    it is 9 m from the outline (one 0.05 s sample: 0.2 m). The plain episode carries it, and
+    ``timed`` drops it."""
+    from types import SimpleNamespace
+
+    from replan_episodes import _trigger, from_plain
+
+    from staghunt.world import Cylinder
+    from staghunt.world.dynamic import Trigger
+
+    class Straight:
+        arrival = 10.0
+
+        def state(self, t: np.ndarray) -> tuple[np.ndarray]:
+            pos = np.zeros((2, len(t), 3))
+            pos[0, :, 0] = 4.0 * t
+            pos[1, :, 1] = 30.0  # UAV2 far off
+            return (pos,)
+
+    team = SimpleNamespace(team=[SimpleNamespace(name="UAV1", radius=1.0), SimpleNamespace(name="UAV2", radius=1.0)])
+    trig = _trigger(team, Straight(), 0, Cylinder(20.0, 0.0, 2.0, "pop-up"), 2.0)
+    assert trig.uav == "UAV1" and trig.within == pytest.approx(9.0, abs=0.25)
+    plain = {"waypoints": [[[1.0, 2.0, 3.0]]], "moving": [], "jibs": [],
+             "events": [{"time": 6.0, "kind": "appear", "name": "pop-up", "x": 20.0, "y": 0.0, "radius": 2.0,
+                         "trigger": {"uav": "UAV1", "within": 9.0}}]}
+    assert from_plain(plain)[1].events[0].trigger == Trigger("UAV1", 9.0)
+    assert from_plain(plain, timed=True)[1].events[0].trigger is None
