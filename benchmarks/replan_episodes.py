@@ -93,12 +93,20 @@ def _trigger(scenario: Any, ref: Any, n: int, shape: Any, lead: float) -> Any:
     latest)."""
     from staghunt.world.dynamic import Trigger
 
-    grid = np.arange(0.0, ref.arrival, 0.05)
+    grid, d, entry = _entry(ref, n, shape, scenario.team[n].radius)
+    k = int(np.searchsorted(grid, max(0.0, entry - lead) - 1e-9)) if entry is not None else 0
+    return Trigger(scenario.team[n].name, float(d[k] - shape.radius))
+
+
+def _entry(ref: Any, n: int, shape: Any, body: float, since: float = 0.0) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """UAV ``n`` of the plan ``ref`` every 0.05 s from ``since`` (the times ``(G,)``): its
+    horizontal distance from the pop-up's centre ``(G,)``, and the first time its body (radius
+    ``body``) is inside the pop-up (``None``: never)."""
+    grid = np.arange(since, ref.arrival, 0.05)
     xy = ref.state(grid)[0][n, :, :2]
     d = np.hypot(xy[:, 0] - shape.x, xy[:, 1] - shape.y)
-    inside = d < shape.radius + scenario.team[n].radius
-    k = int(np.searchsorted(grid, max(0.0, grid[np.argmax(inside)] - lead) - 1e-9)) if inside.any() else 0
-    return Trigger(scenario.team[n].name, float(d[k] - shape.radius))
+    inside = d < shape.radius + body
+    return grid, d, (float(grid[np.argmax(inside)]) if inside.any() else None)
 
 
 def add_triggers(episodes: list[dict[str, Any]]) -> list[int]:
@@ -127,13 +135,11 @@ def add_triggers(episodes: list[dict[str, Any]]) -> list[int]:
         known = Dynamics(dyn.moving, dyn.jibs)  # the plan is made sound against the known motion alone
         request = check_plan(replace(sc, dynamics=known), "game", 1, sc.solver, "auto")
         _, ref, _, _ = plan_around(request, known, wp, FlyConfig())
-        v, n = e["events"][0], e["popup_uav"]
-        grid = np.arange(v["time"], ref.arrival, 0.05)
-        xy = ref.state(grid)[0][n, :, :2]
-        inside = np.hypot(xy[:, 0] - v["x"], xy[:, 1] - v["y"]) < v["radius"] + sc.team[n].radius
-        if not inside.any() or abs(grid[np.argmax(inside)] - v["time"] - e["popup_lead_s"]) > 0.051:
+        v, n, shape = e["events"][0], e["popup_uav"], dyn.events[0].shape
+        entry = _entry(ref, n, shape, sc.team[n].radius, since=v["time"])[2]
+        if entry is None or abs(entry - v["time"] - e["popup_lead_s"]) > 0.051:
             moved.append(e["episode"])
-        trig = _trigger(sc, ref, n, dyn.events[0].shape, e["popup_lead_s"])
+        trig = _trigger(sc, ref, n, shape, e["popup_lead_s"])
         v["trigger"] = {"uav": trig.uav, "within": trig.within}
     return moved
 
