@@ -11,11 +11,26 @@ import numpy as np
 from staghunt import load_scenario
 from staghunt.costs import CostModel
 from staghunt.engine import get_engine
+from staghunt.costs.single import segment_axis_distance
+from staghunt.solvers.clear import CLEAR_PAD, pushed_clear
 from staghunt.solvers.game import best_response_rounds
 from staghunt.solvers.improve import Deadline, anytime_rounds, certify_and_improve
 from staghunt.solvers.response import CertifyOptions, check_search
 
 SMALL = str(Path(__file__).parent / "data" / "flight_small.toml")
+
+
+def _cut(sc):
+    """The small site with a pop-up (radius 3 m at (30, 13)) across UAV1's straight route at
+    y = 15, and the straight plan ``(2, 6, 3)`` through it."""
+    from dataclasses import replace
+
+    from staghunt.world import Cylinder
+
+    sc = replace(sc, world=replace(sc.world, cylinders=sc.world.cylinders + (Cylinder(30.0, 13.0, 3.0, "pop-up"),)))
+    x = np.linspace(5.0, 55.0, sc.solver.waypoints + 2)[1:-1]
+    plan = np.stack([np.column_stack([x, np.full_like(x, y), np.full_like(x, 12.0)]) for y in (15.0, 23.0)])
+    return sc, plan
 
 
 def _zigzag(sc):
@@ -157,3 +172,34 @@ def test_a_certificate_still_searching_at_the_deadline_is_abandoned():
     share = float(re.search(r"(\d+) % done", note).group(1)) / 100
     assert share < 1.0 and took < 0.3 + 1.0  # stopped at its next progress report, not at its end
     assert deadline.certificate_s >= 0.1  # at least the time it ran (over the share it had done)
+
+
+def test_a_plan_cut_by_an_obstacle_is_pushed_clear_to_the_side_it_passed():
+    """UAV1's straight route passes 2 m from the pop-up's axis, inside its hard clearance
+    (3 + 0.5 + 1 m): pushed, every segment passes at least that plus the pad from the axis,
+    on the side it passed (y > 13), at the same heights; UAV2 (10 m away) and the start and
+    goal do not move, and a plan already clear comes back as it is."""
+    sc, plan = _cut(load_scenario(SMALL))
+    model, engine = CostModel.from_scenario(sc), get_engine("numpy")
+    assert engine.evaluate(model, plan[None]).violation[0, 0, 0] > 0
+    out = pushed_clear(model, plan)
+    assert engine.evaluate(model, out[None]).total_violation[0] == 0
+    full = np.concatenate([model.starts[:, None], out, model.goals[:, None]], axis=1)
+    d = segment_axis_distance(full[None, :, :, :2], model.cylinders)[0, 0, :, -1]  # UAV1 to the pop-up
+    assert d.min() >= 3.0 + 0.5 + 1.0 + CLEAR_PAD - 1e-6
+    assert np.all(out[0, :, 1] >= 15.0) and out[0, :, 1].max() > 17.0  # away from the axis at y = 13
+    assert np.array_equal(out[1], plan[1]) and np.array_equal(out[..., 2], plan[..., 2])
+    assert pushed_clear(model, out) is out  # clear already: as it is
+
+
+def test_the_rounds_of_a_cut_plan_start_from_it_pushed_clear():
+    """A re-plan's rounds (``repair``) from a plan a pop-up cuts, stopped after their first
+    reply: the plan they return is feasible, and UAV2's part is the pushed plan's."""
+    sc, plan = _cut(load_scenario(SMALL))
+    model, engine = CostModel.from_scenario(sc), get_engine("numba")
+    settings = sc.solver.with_(particles=20, iterations=10)
+    budget = settings.particles * (settings.iterations + 1) * sc.n_uavs * 10
+    out = anytime_rounds(model, plan, settings, np.random.default_rng(3), engine.run_swarm, engine,
+                         budget, Deadline.after(0.0), repair=True)
+    assert engine.evaluate(model, out.plan[None]).total_violation[0] == 0
+    assert np.array_equal(out.plan[1], pushed_clear(model, plan)[1])  # stopped after UAV1's reply

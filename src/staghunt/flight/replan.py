@@ -10,8 +10,8 @@ in, carried to ``t_s`` (:meth:`Start.measured`). It
    lead-in points, each UAV's stopping distance ahead along its velocity), the static and
    sensed obstacles and the swept volumes of the known motions over the predicted conflicts'
    windows, with the margins grown for the tracking allowance (:meth:`Replanner._problem`);
-2. warm-starts the game from the current plan and runs the best-response rounds until they
-   converge or the deadline's game share is spent (:func:`staghunt.solvers.improve.anytime_rounds`);
+2. warm-starts the game from the current plan, pushed clear of a new obstacle that cuts it, and runs
+   the rounds until they converge or the deadline's game share is spent (:func:`staghunt.solvers.improve.anytime_rounds`);
 3. times the new paths from the measured state and accepts them with the one safety judge
    (:class:`~staghunt.flight.known.Acceptance`); a new conflict with a motion adds its window
    and the team solves again, up to ``attempts`` times;

@@ -20,6 +20,7 @@ import numpy as np
 
 from staghunt.costs import CostEngine, CostModel, Costs, NumpyCosts
 from staghunt.scenario.model import Scenario, SolverSettings
+from staghunt.solvers.clear import pushed_clear
 from staghunt.solvers.game import RoundsOutcome, best_response_rounds
 from staghunt.solvers.local import LocalSearch, local_pass
 from staghunt.solvers.response import LOCAL_SHARE, Certificate, CertifyOptions, CertifyRequest, certify_plan
@@ -96,8 +97,12 @@ def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings,
     once ``deadline`` has passed, stops after the reply in progress and returns the plan it
     had then (``converged`` false). ``cancelled()`` true after a reply raises
     :class:`Cancelled`. ``options``: the rounds' keyword arguments (``repair``,
-    ``reply_start``, ``azimuth``)."""
-    box: dict[str, Any] = {"plan": np.array(warm, dtype=float), "J": None, "last": None}
+    ``reply_start``, ``azimuth``); with ``repair``, a ``warm`` plan that an obstacle cuts is
+    first pushed clear of it (:func:`~staghunt.solvers.clear.pushed_clear`)."""
+    warm = np.array(warm, dtype=float)
+    if options.get("repair") and engine.evaluate(model, warm[None]).total_violation[0] > 0:
+        warm = pushed_clear(model, warm)
+    box: dict[str, Any] = {"plan": warm.copy(), "J": None, "last": None}
 
     def seen(plan: np.ndarray, out: Costs) -> None:  # the rounds judge each reply as a whole plan last, before on_reply
         box["last"] = (plan.copy(), out.total[0].copy())
