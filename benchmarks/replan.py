@@ -90,7 +90,8 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
                      "deadline_s": x.deadline_s, "late": x.late, "overran": x.overran, "certified": x.certified,
                      "solved": x.solved, "committed": x.committed, "sent": x.version > 0,
                      "receding": x.cause is Cause.RECEDING, "max_gap": max(x.nash_gaps, default=None),
-                     "trigger": x.trigger, "time": x.time, "phases": {k: round(v, 4) for k, v in x.phases}}
+                     "trigger": x.trigger, "time": x.time, "phases": {k: round(v, 4) for k, v in x.phases},
+                     "problems": list(x.problems[:2]) if x.stopped else []}
                     for x in r.replans],
         "tracking_rms_m": float(np.sqrt(np.mean(r.tracking_rms ** 2))),
         "tracking_max_m": float(r.tracking_max.max()),
@@ -269,6 +270,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "sensed_solved": sum(x["cause"] == "sensed" for x in solved),
         "sensed_certified": sum(x["certified"] for x in solved if x["cause"] == "sensed"),
         "episodes_with_emergency_stop": sum(any(x["status"] == "emergency stop" for x in r["replans"]) for r in ok),
+        "first_stop_causes": stop_causes(ok),
         "popups_no_swerve": sum(r.get("popup_swerve_possible") is False for r in ok),
         "arrived_without_stop_swerve_possible": sum(r.get("popup_swerve_possible") is not False for r in clean),
         "episodes_swerve_possible": sum(r.get("popup_swerve_possible") is not False for r in ok),
@@ -287,6 +289,33 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "worst_overrun": None if worst is None else {k: worst[k] for k in ("time", "cause", "trigger", "status",
                                                                              "latency_s", "deadline_s", "phases")},
     }
+
+
+STOPS = ("stop, replanned", "stop", "emergency stop")
+"""The statuses of a re-plan that brings the team to rest (``ReplanStatus.stopped``)."""
+
+
+def stop_cause(problems: list[str]) -> str:
+    """Why a re-plan stopped the team, from its first problem (rows of code before 2026-11-27 19:40
+    UTC record none): the game found no feasible plan from the moving state; it did, but the
+    timed curve broke a margin (``contact:`` or ``breach:``, the one judge's words); no timing
+    met the limits; or another reason."""
+    if not problems:
+        return "not recorded"
+    first = problems[0]
+    if first.startswith("no feasible plan"):
+        return "no feasible plan"
+    if first.startswith(("contact:", "breach:")):
+        return "timed curve broke a margin"
+    return "timing over the limits" if first.startswith("no timing") else "other"
+
+
+def stop_causes(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """Per :func:`stop_cause`, the episodes whose first stop (a re-plan of a status in
+    :data:`STOPS`) had that cause."""
+    causes = [stop_cause(next(x for x in r["replans"] if x["status"] in STOPS).get("problems", []))
+              for r in rows if any(x["status"] in STOPS for x in r["replans"])]
+    return {c: causes.count(c) for c in sorted(set(causes))}
 
 
 def _median(values: list[float | None]) -> float | None:

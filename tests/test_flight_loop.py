@@ -535,3 +535,31 @@ def test_a_replan_from_close_to_an_obstacle_does_not_come_closer_than_the_reflex
     assert clear[0] == pytest.approx(have, abs=1e-6)
     assert clear.min() >= min(sc.costs.min_clearance, have) - REFLEX_TOLERANCE
     assert out.plan.state(np.array([out.plan.arrival]))[0][0, 0, 0] > centre[0]  # past it
+
+
+def test_a_stop_and_a_plan_from_rest_record_why_the_swerve_failed():
+    """When the plan from the moving state fails and the one from rest after a stop passes, the
+    re-plan's record keeps the moving solve's problems: the flight log says why the team
+    stopped (benchmarks/replan.py counts the first stops by cause)."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import Replanner
+
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    config = replace(FIXED, replan_particles=20, replan_iterations=10)
+    rp = Replanner(sc, Dynamics(), config, get_engine("numba", threads=1), np.random.default_rng(0))
+    solve_from = rp._attempts
+
+    def swerve_fails(start, *args, **kwargs):  # the moving solve ends with a problem, the one from rest runs
+        out = solve_from(start, *args, **kwargs)
+        return out if kwargs.get("head") is not None else replace(out, plan=None, problems=["no feasible plan (test)"])
+
+    rp._attempts = swerve_fails
+    t_s = 3.0
+    s = ref.state(np.array([t_s]))[:, :, 0]
+    assert np.linalg.norm(s[1], axis=-1).min() > 1.0  # moving
+    out = rp.solve(Start(t_s, ref, s[0], s[1], s[2]), lambda: t_s, 1, [])
+    assert out.status is ReplanStatus.STOP_REPLANNED and out.plan is not None
+    assert out.problems == ("no feasible plan (test)",)

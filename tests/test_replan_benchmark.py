@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from replan import popup_reach, popup_swerve  # noqa: E402
+from replan import popup_reach, popup_swerve, stop_causes  # noqa: E402
 
 NOTICE = 0.2  # a sensor period, a reflex check and the reflex latency (s)
 
@@ -88,3 +88,19 @@ def test_a_popup_trigger_is_where_its_uav_is_lead_seconds_before_contact() -> No
                          "trigger": {"uav": "UAV1", "within": 9.0}}]}
     assert from_plain(plain)[1].events[0].trigger == Trigger("UAV1", 9.0)
     assert from_plain(plain, timed=True)[1].events[0].trigger is None
+
+
+def test_first_stops_are_counted_by_the_cause_the_record_gives():
+    """An episode's first stop (``stop, replanned``, ``stop`` or ``emergency stop``) counts once,
+    by its first problem; a deferred re-plan before it is no stop, and an episode with none is
+    not counted."""
+    def row(*replans):
+        return {"replans": [{"status": s, "problems": p} for s, p in replans]}
+
+    rows = [row(("deferred", []), ("stop, replanned", ["no feasible plan from the switch state"]),
+                ("stop", ["contact: UAV1's clearance to pop-up fell to -0.1 m"])),
+            row(("stop, replanned", ["breach: UAV3's clearance to pop-up fell to 0.4 m (required 1.25 m)"])),
+            row(("emergency stop", ["no timing of the new paths keeps speed <= 12 m/s"])),
+            row(("stop", [])), row(("replanned", []))]
+    assert stop_causes(rows) == {"no feasible plan": 1, "timed curve broke a margin": 1,
+                                 "timing over the limits": 1, "not recorded": 1}

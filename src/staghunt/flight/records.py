@@ -144,8 +144,9 @@ class Laps:
 class Solved:
     """What :meth:`Replanner.solve` decided: the ``plan`` to send (``None``: keep the current
     one), its ``status``, the path ``evaluations`` and ``attempts`` spent, its certificate
-    (``nash_gaps``, ``certified``, ``verdict``), the ``problems`` that stopped it and the
-    conflict ``windows`` solved around."""
+    (``nash_gaps``, ``certified``, ``verdict``), the ``problems`` that stopped it (of a stop
+    and a plan from rest, :attr:`ReplanStatus.STOP_REPLANNED`: why the plan from the moving
+    state failed) and the conflict ``windows`` solved around."""
 
     plan: Reference | None
     status: ReplanStatus

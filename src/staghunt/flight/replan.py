@@ -202,10 +202,10 @@ class Replanner:
             self.hint = first.out.plan if first.out is not None else None
             return Solved(None, ReplanStatus.DEFERRED, spent, tries, problems=tuple(first.problems[:5]),
                           windows=tuple(sorted(set(first.windows))))
-        chosen, status = first, ReplanStatus.REPLANNED
+        chosen, status, why = first, ReplanStatus.REPLANNED, ()
         if first.plan is None and rest is not None:
-            if rest.plan is not None:
-                chosen, status = rest, ReplanStatus.STOP_REPLANNED
+            if rest.plan is not None:  # why the swerve failed stays on the record
+                chosen, status, why = rest, ReplanStatus.STOP_REPLANNED, tuple(first.problems[:5])
             else:
                 chosen = replace(rest, problems=rest.problems or first.problems)
         used = tuple(sorted(set(chosen.windows)))
@@ -231,9 +231,9 @@ class Replanner:
         cert = done.certificate
         if cert is None:
             return Solved(done.flown, status, spent + done.spent, tries, verdict="not certified: " + "; ".join(done.notes),
-                          windows=used, game=(chosen.sub, done.plan, chosen.azimuth))
+                          problems=why, windows=used, game=(chosen.sub, done.plan, chosen.azimuth))
         return Solved(done.flown, status, spent + done.spent, tries, tuple(float(u.relative) for u in cert.uavs),
-                      cert.is_equilibrium, cert.verdict, (), used)
+                      cert.is_equilibrium, cert.verdict, why, used)
 
     def certify(self, game: tuple[Scenario, np.ndarray, float]) -> tuple[tuple[float, ...], bool, str, int]:
         """The certificate of a plan sent uncertified (``Solved.game``), made later, with no
