@@ -298,7 +298,9 @@ STOPS = ("stop, replanned", "stop", "emergency stop")
 def stop_cause(problems: list[str]) -> str:
     """Why a re-plan stopped the team, from its first problem (rows of code before 2026-11-27 19:40
     UTC record none): the game found no feasible plan from the moving state; it did, but the
-    timed curve broke a margin (``contact:`` or ``breach:``, the one judge's words); no timing
+    timed plan broke a margin (``contact:`` or ``breach:``, the one judge's words) at the pop-up
+    (the episodes' pop-ups are all named ``pop-up...``, :mod:`replan_episodes`) or elsewhere (a
+    known motion's conflict found after the last try, a team-mate, a static obstacle); no timing
     met the limits; or another reason."""
     if not problems:
         return "not recorded"
@@ -306,7 +308,8 @@ def stop_cause(problems: list[str]) -> str:
     if first.startswith("no feasible plan"):
         return "no feasible plan"
     if first.startswith(("contact:", "breach:")):
-        return "timed curve broke a margin"
+        return "timed plan broke a margin at the pop-up" if "clearance to pop-up" in first else \
+            "timed plan broke a margin elsewhere"
     return "timing over the limits" if first.startswith("no timing") else "other"
 
 

@@ -100,7 +100,9 @@ def test_first_stops_are_counted_by_the_cause_the_record_gives():
     rows = [row(("deferred", []), ("stop, replanned", ["no feasible plan from the switch state"]),
                 ("stop", ["contact: UAV1's clearance to pop-up fell to -0.1 m"])),
             row(("stop, replanned", ["breach: UAV3's clearance to pop-up fell to 0.4 m (required 1.25 m)"])),
+            row(("stop", ["contact: UAV2's clearance to truck fell to -2.4 m (required 1.63 m)"])),
             row(("emergency stop", ["no timing of the new paths keeps speed <= 12 m/s"])),
             row(("stop", [])), row(("replanned", []))]
-    assert stop_causes(rows) == {"no feasible plan": 1, "timed curve broke a margin": 1,
-                                 "timing over the limits": 1, "not recorded": 1}
+    assert stop_causes(rows) == {"no feasible plan": 1, "timed plan broke a margin at the pop-up": 1,
+                                 "timed plan broke a margin elsewhere": 1, "timing over the limits": 1,
+                                 "not recorded": 1}
