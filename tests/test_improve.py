@@ -10,8 +10,8 @@ import numpy as np
 
 from staghunt import load_scenario
 from staghunt.costs import CostModel
-from staghunt.engine import get_engine
 from staghunt.costs.single import segment_axis_distance
+from staghunt.engine import get_engine
 from staghunt.solvers.clear import CLEAR_PAD, pushed_clear
 from staghunt.solvers.game import best_response_rounds
 from staghunt.solvers.improve import Deadline, anytime_rounds, certify_and_improve
