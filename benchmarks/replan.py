@@ -291,10 +291,6 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
-STOPS = ("stop, replanned", "stop", "emergency stop")
-"""The statuses of a re-plan that brings the team to rest (``ReplanStatus.stopped``)."""
-
-
 def stop_cause(problems: list[str]) -> str:
     """Why a re-plan stopped the team, from its first problem (rows of code before 2026-11-27 19:40
     UTC record none): the game found no feasible plan from the moving state; it did, but the
@@ -314,10 +310,13 @@ def stop_cause(problems: list[str]) -> str:
 
 
 def stop_causes(rows: list[dict[str, Any]]) -> dict[str, int]:
-    """Per :func:`stop_cause`, the episodes whose first stop (a re-plan of a status in
-    :data:`STOPS`) had that cause."""
-    causes = [stop_cause(next(x for x in r["replans"] if x["status"] in STOPS).get("problems", []))
-              for r in rows if any(x["status"] in STOPS for x in r["replans"])]
+    """Per :func:`stop_cause`, the episodes whose first stop (a re-plan whose status brings the
+    team to rest, ``ReplanStatus.stopped``) had that cause."""
+    from staghunt.flight import ReplanStatus
+
+    stops = {s.value for s in ReplanStatus if s.stopped}
+    firsts = [next((x for x in r["replans"] if x["status"] in stops), None) for r in rows]
+    causes = [stop_cause(x.get("problems", [])) for x in firsts if x is not None]
     return {c: causes.count(c) for c in sorted(set(causes))}
 
 

@@ -100,9 +100,11 @@ def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings,
     ``reply_start``, ``azimuth``); with ``repair``, a ``warm`` plan that an obstacle cuts is
     first pushed clear of it (:func:`~staghunt.solvers.clear.pushed_clear`)."""
     warm = np.array(warm, dtype=float)
-    if options.get("repair") and engine.evaluate(model, warm[None]).total_violation[0] > 0:
+    first = engine.evaluate(model, warm[None])
+    if options.get("repair") and first.total_violation[0] > 0:
         warm = pushed_clear(model, warm)
-    box: dict[str, Any] = {"plan": warm.copy(), "J": None, "last": None}
+        first = engine.evaluate(model, warm[None])
+    box: dict[str, Any] = {"plan": warm.copy(), "J": first.total[0].copy(), "last": None}
 
     def seen(plan: np.ndarray, out: Costs) -> None:  # the rounds judge each reply as a whole plan last, before on_reply
         box["last"] = (plan.copy(), out.total[0].copy())
@@ -117,7 +119,6 @@ def anytime_rounds(model: CostModel, warm: np.ndarray, settings: SolverSettings,
         if deadline.passed:
             raise _TimeUp(box["plan"], spent)
 
-    box["J"] = engine.evaluate(model, box["plan"][None]).total[0].copy()
     try:
         return best_response_rounds(model, warm, settings, rng, runner, _Watched(engine, seen), budget, 0, on_reply,
                                     **options)
