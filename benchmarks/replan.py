@@ -11,10 +11,12 @@ The episodes (benchmarks/replan_episodes.py: a site vehicle or the crane's jib, 
 2-5 s ahead of a random UAV) are built once and saved (``results/replan_episodes.json``), and
 every later run flies the same ones (``--rebuild`` builds them again), so that runs of
 different code or settings compare episode by episode. A pop-up appears at its time or, sooner,
-once its UAV comes as close to it as the plan had it then (its trigger): a flight re-timed by
-the receding horizon and the link meets it as far ahead as the plan would have.
-``--timed-popups`` drops the triggers (the runs before 2026-11-27 17:00 UTC flew them so, and
-met some pop-ups on the UAV itself).
+once any UAV is within the episode's lead of it at its speed (its distance from the outline at
+most the lead times its speed): a flight re-timed by the receding horizon and the link meets it
+at least as far ahead as drawn, whichever UAV comes first. ``--popups placed`` flies the saved
+triggers instead (the UAV it was placed for, as close as the plan had it then: the runs from
+2026-11-27 17:00 to 21:00 UTC, which met some pop-ups 0.5 s ahead of another UAV), ``--popups
+timed`` none (the runs before, which met some pop-ups on the UAV itself).
 
 Every episode is a :func:`staghunt.fly` run with the default settings: re-plans take the wall
 time they really take while the simulated world goes on (``--latency measured``; a number
@@ -65,7 +67,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
     from staghunt.world.dynamic import Link
 
     e = job["episode"]
-    wp, dyn = replan_episodes.from_plain(e, timed=job.get("timed", False))
+    wp, dyn = replan_episodes.from_plain(e, job.get("popups", "lead"))
     config = FlyConfig(wind=job.get("wind", 0.0), link=Link(*job["link"]), **job.get("config", {}))
     t0 = time.perf_counter()
     try:
@@ -416,8 +418,9 @@ def main() -> int:
     ap.add_argument("--solve-only", action="store_true",
                     help="only each episode's first re-plan, on the plan, one at a time with the engine's adaptive "
                     "threads (the latency on the whole machine); writes replan_solve.json")
-    ap.add_argument("--timed-popups", action="store_true",
-                    help="each pop-up appears at its time only, without its trigger (as the code before triggers flew them)")
+    ap.add_argument("--popups", choices=replan_episodes.POPUPS, default="lead",
+                    help="lead (default): a pop-up appears at its time or once any UAV is its drawn lead from it; "
+                    "placed: the saved trigger, on the UAV it was placed for; timed: at its time only")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a FlyConfig setting for every episode, e.g. --set replan_rate=0 (repeatable)")
     args = ap.parse_args()
@@ -456,7 +459,7 @@ def main() -> int:
     link = (args.link_delay, args.link_jitter, args.link_loss)
     jobs: list[dict[str, Any]] = []
     for e in pick:
-        base = {"episode": e, "threads": threads, "config": overrides, "link": link, "timed": args.timed_popups}
+        base = {"episode": e, "threads": threads, "config": overrides, "link": link, "popups": args.popups}
         if e["kind"] != "scenario2" or e["episode"] < args.episodes:
             jobs.append(base)
         if e["kind"] == "scenario2" and e["episode"] < args.wind_episodes:
@@ -478,7 +481,7 @@ def main() -> int:
     kinds = sorted({r["kind"] for r in rows})
     summary = {k: summarise([r for r in rows if r["kind"] == k]) for k in kinds}
     meta = {"jobs": args.jobs, "threads_per_solve": threads or "adaptive", "wall_s": wall, "link": link,
-            "popups": "timed" if args.timed_popups else "triggered",
+            "popups": args.popups,
             "latency": args.latency, "settings": overrides, "loadavg_median": float(np.median(loads)) if loads else None,
             "loadavg_range": [min(loads), max(loads)] if loads else None, "cpus": os.cpu_count(), "plans": plans}
     name = "replan" + (f"_{args.tag}" if args.tag else "")

@@ -234,10 +234,18 @@ def to_plain(kind: str, episode: int, waypoints: np.ndarray, dyn: Any, uav: int,
     }
 
 
-def from_plain(e: dict[str, Any], timed: bool = False) -> tuple[np.ndarray, Any]:
+POPUPS = ("lead", "placed", "timed")
+"""How a pop-up appears (:func:`from_plain`): ``lead``, at its time or sooner once any UAV is
+within its drawn lead (``popup_lead_s``) of it at its speed (the runs since 2026-11-27 21:00
+UTC); ``placed``, at its time or sooner once the UAV it was placed for is as close as the plan
+had it then (the saved trigger; the runs from 17:00 to 21:00 UTC); ``timed``, at its time
+only (the runs before)."""
+
+
+def from_plain(e: dict[str, Any], popups: str = "lead") -> tuple[np.ndarray, Any]:
     """The plan ``(N, K, 3)`` and the :class:`~staghunt.world.dynamic.Dynamics` of a plain episode
-    (built with constructors that the code of 2026-11 has too); ``timed``: the pop-up appears at
-    its time only, without its trigger (as the code before triggers flew it)."""
+    (built with constructors that the code of 2026-11 has too), its pop-up appearing as
+    ``popups`` says (:data:`POPUPS`)."""
     from staghunt.world import Cylinder
     from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib
 
@@ -246,16 +254,22 @@ def from_plain(e: dict[str, Any], timed: bool = False) -> tuple[np.ndarray, Any]
     jibs = tuple(SlewingJib(j["name"], tuple(j["pivot"]), j["length"], j["width"], j["base"], j["top"], j["angle_from"],
                             j["angle_to"], j["rate"], j["counter"], j["start_time"], j["repeat"],
                             tuple(j["agl"]) if j["agl"] else None) for j in e["jibs"])
+    if popups not in POPUPS:
+        raise ValueError(f"popups: one of {', '.join(POPUPS)}; got {popups!r}")
     events = tuple(Event(v["time"], v["kind"], v["name"], Cylinder(v["x"], v["y"], v["radius"], v["name"]),
-                         **({"trigger": _plain_trigger(v["trigger"])} if "trigger" in v and not timed else {}))
+                         trigger=_plain_trigger(v, e, popups))
                    for v in e["events"])
     return np.array(e["waypoints"], dtype=float), Dynamics(moving, jibs, events)
 
 
-def _plain_trigger(v: dict[str, Any]) -> Any:
+def _plain_trigger(v: dict[str, Any], e: dict[str, Any], popups: str) -> Any:
     from staghunt.world.dynamic import Trigger
 
-    return Trigger(v["uav"], v["within"])
+    if popups == "timed" or "trigger" not in v:
+        return None
+    if popups == "placed":
+        return Trigger(v["trigger"]["uav"], v["trigger"]["within"])
+    return Trigger(None, lead=e["popup_lead_s"])
 
 
 def build(counts: dict[str, int]) -> tuple[list[dict[str, Any]], dict[str, Any]]:

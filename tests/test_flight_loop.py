@@ -104,8 +104,9 @@ def test_a_triggered_popup_appears_when_its_uav_comes_within_its_distance(calm):
                                    trigger=Trigger("UAV2", 1.0)),))
     quiet = fly(SMALL, events=never, seed=0, config=FIXED)  # UAV2 never comes within 1 m of it
     assert quiet.dynamics.events[0].time == 1000.0 and not quiet.replans
-    for bad in (Trigger("UAV7", 6.0), Trigger("UAV1", float("nan"))):
-        with pytest.raises(ValueError, match="trigger needs a UAV of the team"):
+    for bad in (Trigger("UAV7", 6.0), Trigger("UAV1", float("nan")), Trigger(None), Trigger(None, 0.0, -1.0),
+                Trigger(None, 0.0, math.inf)):
+        with pytest.raises(ValueError, match="trigger needs no UAV or one of the team"):
             fly(SMALL, events=Dynamics(events=(Event(9.0, "appear", "popup", shape, trigger=bad),)), seed=0, config=FIXED)
 
 

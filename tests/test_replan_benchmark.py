@@ -62,8 +62,9 @@ def test_popup_swerve_is_the_sideways_reach_in_the_time_left(x: float, y: float,
 def test_a_popup_trigger_is_where_its_uav_is_lead_seconds_before_contact() -> None:
     """The episodes' trigger (replan_episodes._trigger): UAV1 at 4 m/s along x from 0 meets a
     pop-up of radius 2 m at x = 20 (body 1 m) when x = 17, at t = 4.25 s; 2 s before, at x = 9,
-    it is 9 m from the outline (one 0.05 s sample: 0.2 m). The plain episode carries it, and
-    ``timed`` drops it."""
+    it is 9 m from the outline (one 0.05 s sample: 0.2 m). The plain episode carries it; flown
+    ``placed`` it is that trigger, by default any UAV within the episode's lead at its speed,
+    ``timed`` none."""
     from types import SimpleNamespace
 
     from replan_episodes import _trigger, from_plain
@@ -85,9 +86,12 @@ def test_a_popup_trigger_is_where_its_uav_is_lead_seconds_before_contact() -> No
     assert trig.uav == "UAV1" and trig.within == pytest.approx(9.0, abs=0.25)
     plain = {"waypoints": [[[1.0, 2.0, 3.0]]], "moving": [], "jibs": [],
              "events": [{"time": 6.0, "kind": "appear", "name": "pop-up", "x": 20.0, "y": 0.0, "radius": 2.0,
-                         "trigger": {"uav": "UAV1", "within": 9.0}}]}
-    assert from_plain(plain)[1].events[0].trigger == Trigger("UAV1", 9.0)
-    assert from_plain(plain, timed=True)[1].events[0].trigger is None
+                         "trigger": {"uav": "UAV1", "within": 9.0}}], "popup_lead_s": 2.0}
+    assert from_plain(plain, "placed")[1].events[0].trigger == Trigger("UAV1", 9.0)
+    assert from_plain(plain)[1].events[0].trigger == Trigger(None, 0.0, 2.0)
+    assert from_plain(plain, "timed")[1].events[0].trigger is None
+    with pytest.raises(ValueError, match="popups: one of lead, placed, timed"):
+        from_plain(plain, "soon")
 
 
 def test_first_stops_are_counted_by_the_cause_the_record_gives():

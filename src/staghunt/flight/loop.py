@@ -130,7 +130,7 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
         for a in acks:
             radio.send(t, a.uav, GROUND, a)
         if k % per_tick == 0:
-            seen = sensor.detect(t, pos)
+            seen = sensor.detect(t, pos, vel)
             meas_p, meas_v = sensor.measure(pos, vel)
             for m in members:
                 m.seen = seen[m.n]
@@ -250,9 +250,12 @@ def check_flight(
                                "(give objectives: --objectives FILE)")
     names = [u.name for u in scenario.team]
     for e in dyn.events:
-        if e.trigger is not None and (e.trigger.uav not in names or not 0 < e.trigger.within < math.inf):
-            raise FlightInputError(f"events: {e.name}'s trigger needs a UAV of the team ({', '.join(names)}) and a "
-                                   f"distance > 0 m; got {e.trigger.uav!r} within {e.trigger.within!r}")
+        g = e.trigger
+        if g is not None and ((g.uav is not None and g.uav not in names)
+                              or not (0 <= g.within < math.inf and 0 <= g.lead < math.inf and g.within + g.lead > 0)):
+            raise FlightInputError(f"events: {e.name}'s trigger needs no UAV or one of the team ({', '.join(names)}), "
+                                   f"and a distance (m) or a lead (s) > 0, both finite; got {g.uav!r} within "
+                                   f"{g.within!r}, lead {g.lead!r}")
     if config.link is not None:
         dyn = replace(dyn, link=config.link)
     scenario = replace(scenario, dynamics=dyn)

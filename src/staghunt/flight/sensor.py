@@ -25,7 +25,7 @@ def horizontal_distance(shape: Cylinder | Prism, xy: np.ndarray) -> np.ndarray:
 class Sensor:
     """What the UAVs sense of ``dyn``: :meth:`measure` their states, :meth:`detect` the obstacles
     that appeared within ``dyn.sensing.range`` of each (remembered once seen, until they are
-    gone). Noise is drawn from ``rng``. ``uavs``: the team's names (an appear's trigger names
+    gone). Noise is drawn from ``rng``. ``uavs``: the team's names (an appear's trigger may name
     one); the events as they happened: :meth:`flown`."""
 
     def __init__(self, dyn: Dynamics, uavs: Sequence[str], rng: np.random.Generator) -> None:
@@ -43,23 +43,27 @@ class Sensor:
             vel = vel + self.rng.normal(0.0, s.velocity_noise, vel.shape)
         return pos, vel
 
-    def _appear(self, t: float, pos: np.ndarray) -> None:
+    def _appear(self, t: float, pos: np.ndarray, vel: np.ndarray) -> None:
         """The appear events that happen by ``t``: at their time, or sooner at the first tick
-        their trigger's UAV (true positions ``(N, 3)``) is within its distance."""
+        their trigger holds (:meth:`~staghunt.world.dynamic.Trigger.holds`) for its UAV, or for
+        any UAV when it names none (true positions and velocities ``(N, 3)``)."""
         for i, e in enumerate(self.dyn.events):
             if e.kind != "appear" or e.shape is None or i in self.appeared:
                 continue
             if e.time <= t:
                 self.appeared[i] = e.time
             elif e.trigger is not None:
-                n = self.index[e.trigger.uav]
-                if horizontal_distance(e.shape, pos[n:n + 1, :2])[0] <= e.trigger.within:
+                watch = slice(None) if e.trigger.uav is None else slice(self.index[e.trigger.uav],
+                                                                        self.index[e.trigger.uav] + 1)
+                speed = np.hypot(vel[watch, 0], vel[watch, 1])
+                if e.trigger.holds(horizontal_distance(e.shape, pos[watch, :2]), speed):
                     self.appeared[i] = t
 
-    def detect(self, t: float, pos: np.ndarray) -> list[dict[str, Cylinder | Prism]]:
+    def detect(self, t: float, pos: np.ndarray, vel: np.ndarray) -> list[dict[str, Cylinder | Prism]]:
         """Per UAV, every appeared obstacle it has seen by ``t`` (its true position ``(N, 3)``
-        within the sensing range of it), less those gone."""
-        self._appear(t, pos)
+        within the sensing range of it; true velocities ``(N, 3)`` for the triggers), less those
+        gone."""
+        self._appear(t, pos, vel)
         gone = self.dyn.removed(t)
         for i, e in enumerate(self.dyn.events):
             if i not in self.appeared or e.shape is None or e.name in gone:

@@ -92,10 +92,10 @@ def dynamics_from_tables(f: "ScenarioFile | EventsFile", world: World, uavs: Seq
                      else make_prism(poly, e.base or 0.0, e.height, world.terrain, name))
         trigger = None
         if e.trigger is not None:
-            if e.trigger.uav not in uavs:
+            if e.trigger.uav is not None and e.trigger.uav not in uavs:
                 raise ScenarioError(f"no UAV named {e.trigger.uav!r}; the team: {', '.join(uavs)}",
                                     f"{key}.trigger.uav")
-            trigger = Trigger(e.trigger.uav, e.trigger.within)
+            trigger = Trigger(e.trigger.uav, e.trigger.within or 0.0, e.trigger.lead or 0.0)
         events.append(Event(e.time, "appear", name, shape, trigger=trigger))
     sensing = Sensing(**f.sensing.model_dump()) if f.sensing is not None else Sensing()
     link = Link(**f.link.model_dump()) if f.link is not None else Link()
@@ -215,7 +215,7 @@ def dynamics_to_dict(dyn: Dynamics) -> dict[str, Any]:
                 if e.shape.agl is not None:
                     row.update(base=e.shape.agl[0], height=e.shape.agl[1])
             if e.trigger is not None:
-                row["trigger"] = {"uav": e.trigger.uav, "within": e.trigger.within}
+                row["trigger"] = e.trigger.as_table()
             rows.append(row)
         out["events"] = rows
     s = dyn.sensing

@@ -67,17 +67,27 @@ class JibTable(Solid):
 
 
 class TriggerTable(Table):
-    """An ``appear`` that happens before its ``time`` once a UAV comes close to the obstacle."""
+    """An ``appear`` that happens before its ``time`` once a UAV (``uav``, or any UAV of the team
+    without it) comes ``within`` metres of the obstacle, or ``lead`` seconds at its speed
+    (its horizontal distance at most ``lead`` times its horizontal speed); at least one of the two."""
 
-    uav: Annotated[str, Field(pattern=r"\S", description="the UAV's name")]
-    within: Annotated[float, Field(gt=0, le=1e4, description="m, horizontally from the obstacle's outline")]
+    uav: Optional[Annotated[str, Field(pattern=r"\S", description="the UAV's name; absent: any UAV")]] = None
+    within: Optional[Annotated[float, Field(gt=0, le=1e4, description="m, horizontally from the obstacle's outline")]] = None
+    lead: Optional[Annotated[float, Field(gt=0, le=1e3, description="s: distance from the outline at most lead "
+                                                                   "times the UAV's horizontal speed")]] = None
+
+    @model_validator(mode="after")
+    def _one(self) -> "TriggerTable":
+        if self.within is None and self.lead is None:
+            raise fail("within", "required key is missing (give within, lead or both)")
+        return self
 
 
 class EventTable(Table):
     """A change at ``time``: ``appear`` (a cylinder ``x``, ``y``, ``radius`` through the whole
     height band, or a ``polygon``, a no-fly zone unless ``height`` makes it a prism from
     ``base``), unknown to the plan until a UAV senses it, and with a ``trigger`` sooner, as soon
-    as the UAV it names comes ``within`` metres of it; ``disappear`` (the obstacle ``name``);
+    as the UAV it names (or any) comes ``within`` metres or ``lead`` seconds of it; ``disappear`` (the obstacle ``name``);
     for an inspection, ``uav_lost`` (the UAV ``uav`` lands where it is) and ``objective`` (an
     objective table added in flight)."""
 
@@ -93,7 +103,7 @@ class EventTable(Table):
     height: Optional[Annotated[float, Field(gt=0, description="top, m above ground (polygon); absent: a no-fly zone")]] = None
     uav: Optional[Annotated[str, Field(pattern=r"\S", description="uav_lost: the UAV's name")]] = None
     objective: Optional[ObjectiveTable] = Field(None, description="objective: the objective added")
-    trigger: Optional[TriggerTable] = Field(None, description="appear: sooner than time, once a UAV is this close")
+    trigger: Optional[TriggerTable] = Field(None, description="appear: sooner than time, once a UAV is this close (m or s)")
 
     @model_validator(mode="after")
     def _shape(self) -> "EventTable":
