@@ -464,7 +464,7 @@ def test_round_trip_of_a_triggered_event_and_its_errors() -> None:
     d["events"][0]["trigger"]["uav"] = "C"
     with pytest.raises(ScenarioError, match=r"events\[0\]\.trigger\.uav.*no UAV named 'C'; the team: A, B"):
         scenario_from_dict(d, name="t", base_dir=None)
-    d["events"][0]["trigger"] = {"lead": 2.5}  # any UAV, 2.5 s at its speed
+    d["events"][0]["trigger"] = {"lead": 2.5}  # any UAV, 2.5 s before it would touch it
     s = scenario_from_dict(d, name="t", base_dir=None)
     assert s.dynamics.events[0].trigger == Trigger(None, 0.0, 2.5)
     assert scenario_to_dict(s)["events"][0]["trigger"] == {"lead": 2.5}
@@ -476,25 +476,31 @@ def test_round_trip_of_a_triggered_event_and_its_errors() -> None:
 
 
 def test_a_trigger_without_a_uav_watches_the_whole_team_by_distance_or_lead() -> None:
-    """A pop-up of radius 2 m at the origin; UAV1 hovers 3 m from its outline, UAV2 flies at
-    4 m/s 9 m from it, then 7 m. A lead of 2 s holds once a UAV's distance is at most 2 s
-    times its speed: not at 9 m (8 m), at 7 m; never for the hovering UAV1 (speed 0), nor for
-    UAV2 when the trigger names UAV1. A distance of 3 m holds for UAV1 at once."""
+    """A pop-up of radius 2 m at the origin; UAVs of radius 1 m. UAV1 hovers 3 m from its
+    outline; UAV2's reference comes at it at 4 m/s from 9.5 m (its body touches the outline
+    in 2.125 s), or from 8.5 m (1.875 s). A lead of 2 s holds for the second only; never for
+    the hovering UAV1, nor for UAV2 when the trigger names UAV1. A distance of 3 m holds for
+    UAV1 at once."""
     from staghunt.flight.sensor import Sensor
     from staghunt.world import Cylinder
     from staghunt.world.dynamic import Dynamics, Event, Trigger
 
     def appeared(trigger: Trigger, x2: float) -> bool:
         dyn = Dynamics(events=(Event(100.0, "appear", "p", Cylinder(0.0, 0.0, 2.0, "p"), trigger=trigger),))
-        sensor = Sensor(dyn, ["UAV1", "UAV2"], np.random.default_rng(0))
+        sensor = Sensor(dyn, ["UAV1", "UAV2"], np.random.default_rng(0), radii=[1.0, 1.0])
         pos = np.array([[5.0, 0.0, 10.0], [-2.0 - x2, 0.0, 10.0]])
-        vel = np.array([[0.0, 0.0, 0.0], [4.0, 0.0, 0.0]])
-        sensor.detect(1.0, pos, vel)
+
+        def course(times: np.ndarray) -> np.ndarray:  # (2, G, 3): UAV1 still, UAV2 at 4 m/s along x
+            out = np.repeat(pos[:, None], times.size, axis=1)
+            out[1, :, 0] += 4.0 * (times - 1.0)
+            return out
+
+        sensor.detect(1.0, pos, course)
         return sensor.appeared == {0: 1.0}
 
-    assert not appeared(Trigger(None, lead=2.0), 9.0) and appeared(Trigger(None, lead=2.0), 7.0)
-    assert not appeared(Trigger("UAV1", lead=2.0), 7.0) and appeared(Trigger("UAV2", lead=2.0), 7.0)
-    assert appeared(Trigger("UAV1", within=3.0), 9.0) and not appeared(Trigger("UAV1", within=2.9), 9.0)
+    assert not appeared(Trigger(None, lead=2.0), 9.5) and appeared(Trigger(None, lead=2.0), 8.5)
+    assert not appeared(Trigger("UAV1", lead=2.0), 8.5) and appeared(Trigger("UAV2", lead=2.0), 8.5)
+    assert appeared(Trigger("UAV1", within=3.0), 9.5) and not appeared(Trigger("UAV1", within=2.9), 9.5)
 
 
 def test_round_trip_unset_desired_height() -> None:

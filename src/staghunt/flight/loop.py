@@ -81,7 +81,7 @@ def build(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig,
                        config.reflex_latency, scenario.costs.safe_distance, scenario.costs.min_clearance, radii)
                for n in range(scenario.n_uavs)]
     team = SimulatedTeam(starts, dt, wind, scenario.vehicle, [u.radius for u in scenario.team])
-    return Parts(team, Sensor(dyn, [u.name for u in scenario.team], noise_rng), radio,
+    return Parts(team, Sensor(dyn, [u.name for u in scenario.team], noise_rng, radii), radio,
                  OnboardTeam(members), station)
 
 
@@ -130,7 +130,7 @@ def simulate(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConf
         for a in acks:
             radio.send(t, a.uav, GROUND, a)
         if k % per_tick == 0:
-            seen = sensor.detect(t, pos, vel)
+            seen = sensor.detect(t, pos, onboard.course)
             meas_p, meas_v = sensor.measure(pos, vel)
             for m in members:
                 m.seen = seen[m.n]

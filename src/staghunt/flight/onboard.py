@@ -229,6 +229,11 @@ class OnboardTeam:
             out[:, m.n] = done[key][:, row]
         return out
 
+    def course(self, times: np.ndarray) -> np.ndarray:
+        """``(N, G, 3)`` each UAV's reference positions at ``times`` ``(G,)``, as its track
+        stands now."""
+        return np.concatenate([m.track.state(times)[0] for m in self.members])
+
     @property
     def holds(self) -> int:
         return sum(m.holds for m in self.members)

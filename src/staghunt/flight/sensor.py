@@ -4,13 +4,18 @@ that appeared within each UAV's sensing range (docs/model.md, section 8)."""
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
 from staghunt.safety.measure import static_clearance
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics
+
+Course = Callable[[np.ndarray], np.ndarray]
+"""The UAVs' references at times ``(G,)``: positions ``(N, G, 3)``."""
+LEAD_STEP_S = 0.05
+"""Seconds between the samples of a trigger's lead on the UAVs' references."""
 
 
 def horizontal_distance(shape: Cylinder | Prism, xy: np.ndarray) -> np.ndarray:
@@ -28,9 +33,11 @@ class Sensor:
     gone). Noise is drawn from ``rng``. ``uavs``: the team's names (an appear's trigger may name
     one); the events as they happened: :meth:`flown`."""
 
-    def __init__(self, dyn: Dynamics, uavs: Sequence[str], rng: np.random.Generator) -> None:
+    def __init__(self, dyn: Dynamics, uavs: Sequence[str], rng: np.random.Generator,
+                 radii: Sequence[float] | None = None) -> None:
         self.dyn, self.rng = dyn, rng
         self.index = {name: n for n, name in enumerate(uavs)}
+        self.radii = np.zeros(len(uavs)) if radii is None else np.asarray(radii, dtype=float)
         self.seen: list[dict[str, Cylinder | Prism]] = [{} for _ in uavs]
         self.appeared: dict[int, float] = {}  # appear event (its index in dyn.events) -> when it appeared
 
@@ -43,27 +50,32 @@ class Sensor:
             vel = vel + self.rng.normal(0.0, s.velocity_noise, vel.shape)
         return pos, vel
 
-    def _appear(self, t: float, pos: np.ndarray, vel: np.ndarray) -> None:
+    def _appear(self, t: float, pos: np.ndarray, course: Course | None) -> None:
         """The appear events that happen by ``t``: at their time, or sooner at the first tick
-        their trigger holds (:meth:`~staghunt.world.dynamic.Trigger.holds`) for its UAV, or for
-        any UAV when it names none (true positions and velocities ``(N, 3)``)."""
+        their trigger holds for its UAV, or for any UAV when it names none: true positions
+        ``pos`` ``(N, 3)`` within its distance, or ``course`` (the UAVs' references at given
+        times) bringing a UAV's body inside the outline within its lead."""
         for i, e in enumerate(self.dyn.events):
             if e.kind != "appear" or e.shape is None or i in self.appeared:
                 continue
             if e.time <= t:
                 self.appeared[i] = e.time
             elif e.trigger is not None:
-                watch = slice(None) if e.trigger.uav is None else slice(self.index[e.trigger.uav],
-                                                                        self.index[e.trigger.uav] + 1)
-                speed = np.hypot(vel[watch, 0], vel[watch, 1])
-                if e.trigger.holds(horizontal_distance(e.shape, pos[watch, :2]), speed):
+                g = e.trigger
+                watch = np.arange(len(self.index)) if g.uav is None else np.array([self.index[g.uav]])
+                if g.within > 0 and np.any(horizontal_distance(e.shape, pos[watch, :2]) <= g.within):
                     self.appeared[i] = t
+                elif g.lead > 0 and course is not None:
+                    ahead = course(t + np.arange(0.0, g.lead + 1e-9, LEAD_STEP_S))[watch, :, :2]  # (M, G, 2)
+                    d = horizontal_distance(e.shape, ahead.reshape(-1, 2)).reshape(ahead.shape[:2])
+                    if np.any(d <= self.radii[watch, None]):
+                        self.appeared[i] = t
 
-    def detect(self, t: float, pos: np.ndarray, vel: np.ndarray) -> list[dict[str, Cylinder | Prism]]:
+    def detect(self, t: float, pos: np.ndarray, course: Course | None = None) -> list[dict[str, Cylinder | Prism]]:
         """Per UAV, every appeared obstacle it has seen by ``t`` (its true position ``(N, 3)``
-        within the sensing range of it; true velocities ``(N, 3)`` for the triggers), less those
-        gone."""
-        self._appear(t, pos, vel)
+        within the sensing range of it), less those gone. ``course``: the UAVs' references
+        ``(N, G, 3)`` at times ``(G,)``, for the triggers with a lead."""
+        self._appear(t, pos, course)
         gone = self.dyn.removed(t)
         for i, e in enumerate(self.dyn.events):
             if i not in self.appeared or e.shape is None or e.name in gone:

@@ -163,19 +163,13 @@ class Trigger:
     """What makes an ``appear`` happen before its time, as the sensors' feedback sees it (every
     tick of :attr:`Sensing.rate`, true states): the UAV called ``uav`` (``None``: any UAV of the
     team) coming within ``within`` metres (horizontally) of the obstacle's outline, or within
-    ``lead`` seconds of it at its horizontal speed (its distance at most ``lead`` times its
-    speed: the soonest it could touch the outline at that speed, whatever its heading); 0 turns
-    either off. A test of how the team answers an obstacle met a given distance or time ahead,
-    however the flight was re-timed."""
+    ``lead`` seconds of touching it on the trajectory it flies (its body inside the outline
+    that soon if nothing changed); 0 turns either off. A test of how the team answers an
+    obstacle met a given distance or time ahead, however the flight was re-timed."""
 
     uav: str | None
     within: float = 0.0
     lead: float = 0.0
-
-    def holds(self, distance: np.ndarray, speed: np.ndarray) -> bool:
-        """Whether the trigger holds for the UAVs it watches, given their horizontal distances
-        from the outline ``(M,)`` (m) and horizontal speeds ``(M,)`` (m/s)."""
-        return bool(np.any((distance <= self.within) | (distance <= self.lead * speed)))
 
     def as_table(self) -> dict[str, str | float]:
         """The trigger as an events file writes it: only the keys it uses."""
