@@ -11,9 +11,9 @@ The episodes (benchmarks/replan_episodes.py: a site vehicle or the crane's jib, 
 2-5 s ahead of a random UAV) are built once and saved (``results/replan_episodes.json``), and
 every later run flies the same ones (``--rebuild`` builds them again), so that runs of
 different code or settings compare episode by episode. A pop-up appears at its time or, sooner,
-once any UAV's reference would bring its body into it within the episode's lead (the trigger's
-``lead``): a flight re-timed by the receding horizon and the link meets it as far ahead as
-drawn, whichever UAV comes first. ``--popups placed`` flies the saved
+once any UAV's reference would breach the required clearance to it within the episode's lead
+(the trigger's ``lead``): a flight re-timed by the receding horizon and the link meets it as
+far ahead of a breach as drawn ahead of contact, whichever UAV comes first. ``--popups placed`` flies the saved
 triggers instead (the UAV it was placed for, as close as the plan had it then: the runs from
 2026-11-27 17:00 to 21:00 UTC, which met some pop-ups 0.5 s ahead of another UAV), ``--popups
 timed`` none (the runs before, which met some pop-ups on the UAV itself).

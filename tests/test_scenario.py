@@ -476,9 +476,9 @@ def test_round_trip_of_a_triggered_event_and_its_errors() -> None:
 
 
 def test_a_trigger_without_a_uav_watches_the_whole_team_by_distance_or_lead() -> None:
-    """A pop-up of radius 2 m at the origin; UAVs of radius 1 m. UAV1 hovers 3 m from its
-    outline; UAV2's reference comes at it at 4 m/s from 9.5 m (its body touches the outline
-    in 2.125 s), or from 8.5 m (1.875 s). A lead of 2 s holds for the second only; never for
+    """A pop-up of radius 2 m at the origin; UAVs of radius 1 m, required clearance 1 m (a reach
+    of 2 m). UAV1 hovers 3 m from its outline; UAV2's reference comes at it at 4 m/s from
+    10.5 m (within 2 m of the outline in 2.125 s), or from 9.5 m (1.875 s). A lead of 2 s holds for the second only; never for
     the hovering UAV1, nor for UAV2 when the trigger names UAV1. A distance of 3 m holds for
     UAV1 at once."""
     from staghunt.flight.sensor import Sensor
@@ -487,7 +487,7 @@ def test_a_trigger_without_a_uav_watches_the_whole_team_by_distance_or_lead() ->
 
     def appeared(trigger: Trigger, x2: float) -> bool:
         dyn = Dynamics(events=(Event(100.0, "appear", "p", Cylinder(0.0, 0.0, 2.0, "p"), trigger=trigger),))
-        sensor = Sensor(dyn, ["UAV1", "UAV2"], np.random.default_rng(0), radii=[1.0, 1.0])
+        sensor = Sensor(dyn, ["UAV1", "UAV2"], np.random.default_rng(0), reach=[2.0, 2.0])
         pos = np.array([[5.0, 0.0, 10.0], [-2.0 - x2, 0.0, 10.0]])
 
         def course(times: np.ndarray) -> np.ndarray:  # (2, G, 3): UAV1 still, UAV2 at 4 m/s along x
@@ -498,9 +498,9 @@ def test_a_trigger_without_a_uav_watches_the_whole_team_by_distance_or_lead() ->
         sensor.detect(1.0, pos, course)
         return sensor.appeared == {0: 1.0}
 
-    assert not appeared(Trigger(None, lead=2.0), 9.5) and appeared(Trigger(None, lead=2.0), 8.5)
-    assert not appeared(Trigger("UAV1", lead=2.0), 8.5) and appeared(Trigger("UAV2", lead=2.0), 8.5)
-    assert appeared(Trigger("UAV1", within=3.0), 9.5) and not appeared(Trigger("UAV1", within=2.9), 9.5)
+    assert not appeared(Trigger(None, lead=2.0), 10.5) and appeared(Trigger(None, lead=2.0), 9.5)
+    assert not appeared(Trigger("UAV1", lead=2.0), 9.5) and appeared(Trigger("UAV2", lead=2.0), 9.5)
+    assert appeared(Trigger("UAV1", within=3.0), 10.5) and not appeared(Trigger("UAV1", within=2.9), 10.5)
 
 
 def test_round_trip_unset_desired_height() -> None:

@@ -81,7 +81,8 @@ def build(scenario: Scenario, dyn: Dynamics, ref0: Reference, config: FlyConfig,
                        config.reflex_latency, scenario.costs.safe_distance, scenario.costs.min_clearance, radii)
                for n in range(scenario.n_uavs)]
     team = SimulatedTeam(starts, dt, wind, scenario.vehicle, [u.radius for u in scenario.team])
-    return Parts(team, Sensor(dyn, [u.name for u in scenario.team], noise_rng, radii), radio,
+    return Parts(team, Sensor(dyn, [u.name for u in scenario.team], noise_rng,
+                                radii + scenario.costs.min_clearance), radio,
                  OnboardTeam(members), station)
 
 

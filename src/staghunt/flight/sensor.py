@@ -31,13 +31,14 @@ class Sensor:
     """What the UAVs sense of ``dyn``: :meth:`measure` their states, :meth:`detect` the obstacles
     that appeared within ``dyn.sensing.range`` of each (remembered once seen, until they are
     gone). Noise is drawn from ``rng``. ``uavs``: the team's names (an appear's trigger may name
-    one); the events as they happened: :meth:`flown`."""
+    one), ``reach`` ``(N,)``: each UAV's radius plus the required clearance (a trigger's lead
+    counts to a UAV coming that close); the events as they happened: :meth:`flown`."""
 
     def __init__(self, dyn: Dynamics, uavs: Sequence[str], rng: np.random.Generator,
-                 radii: Sequence[float] | None = None) -> None:
+                 reach: Sequence[float] | None = None) -> None:
         self.dyn, self.rng = dyn, rng
         self.index = {name: n for n, name in enumerate(uavs)}
-        self.radii = np.zeros(len(uavs)) if radii is None else np.asarray(radii, dtype=float)
+        self.reach = np.zeros(len(uavs)) if reach is None else np.asarray(reach, dtype=float)
         self.seen: list[dict[str, Cylinder | Prism]] = [{} for _ in uavs]
         self.appeared: dict[int, float] = {}  # appear event (its index in dyn.events) -> when it appeared
 
@@ -54,7 +55,8 @@ class Sensor:
         """The appear events that happen by ``t``: at their time, or sooner at the first tick
         their trigger holds for its UAV, or for any UAV when it names none: true positions
         ``pos`` ``(N, 3)`` within its distance, or ``course`` (the UAVs' references at given
-        times) bringing a UAV's body inside the outline within its lead."""
+        times) bringing a UAV within its ``reach`` (its radius plus the required clearance) of the
+        outline within its lead."""
         for i, e in enumerate(self.dyn.events):
             if e.kind != "appear" or e.shape is None or i in self.appeared:
                 continue
@@ -68,7 +70,7 @@ class Sensor:
                 elif g.lead > 0 and course is not None:
                     ahead = course(t + np.arange(0.0, g.lead + 1e-9, LEAD_STEP_S))[watch, :, :2]  # (M, G, 2)
                     d = horizontal_distance(e.shape, ahead.reshape(-1, 2)).reshape(ahead.shape[:2])
-                    if np.any(d <= self.radii[watch, None]):
+                    if np.any(d < self.reach[watch, None]):
                         self.appeared[i] = t
 
     def detect(self, t: float, pos: np.ndarray, course: Course | None = None) -> list[dict[str, Cylinder | Prism]]:

@@ -68,13 +68,13 @@ class JibTable(Solid):
 
 class TriggerTable(Table):
     """An ``appear`` that happens before its ``time`` once a UAV (``uav``, or any UAV of the team
-    without it) comes ``within`` metres of the obstacle, or its trajectory would bring its body
-    into the obstacle within ``lead`` seconds; at least one of the two."""
+    without it) comes ``within`` metres of the obstacle, or its trajectory would breach the
+    required clearance to it within ``lead`` seconds; at least one of the two."""
 
     uav: Optional[Annotated[str, Field(pattern=r"\S", description="the UAV's name; absent: any UAV")]] = None
     within: Optional[Annotated[float, Field(gt=0, le=1e4, description="m, horizontally from the obstacle's outline")]] = None
-    lead: Optional[Annotated[float, Field(gt=0, le=1e3, description="s: the UAV's trajectory would touch the "
-                                                                   "obstacle that soon")]] = None
+    lead: Optional[Annotated[float, Field(gt=0, le=1e3, description="s: the UAV's trajectory would breach the "
+                                                                   "clearance to the obstacle that soon")]] = None
 
     @model_validator(mode="after")
     def _one(self) -> "TriggerTable":

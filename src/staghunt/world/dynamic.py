@@ -163,8 +163,8 @@ class Trigger:
     """What makes an ``appear`` happen before its time, as the sensors' feedback sees it (every
     tick of :attr:`Sensing.rate`, true states): the UAV called ``uav`` (``None``: any UAV of the
     team) coming within ``within`` metres (horizontally) of the obstacle's outline, or within
-    ``lead`` seconds of touching it on the trajectory it flies (its body inside the outline
-    that soon if nothing changed); 0 turns either off. A test of how the team answers an
+    ``lead`` seconds of breaching its clearance on the trajectory it flies (its body closer to
+    the outline than the required clearance that soon if nothing changed); 0 turns either off. A test of how the team answers an
     obstacle met a given distance or time ahead, however the flight was re-timed."""
 
     uav: str | None
