@@ -254,6 +254,7 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "popups_within_reach": sum(bool(r.get("popup_within_reach")) for r in ok),
         "popups_triggered": sum(bool(r.get("popup_triggered")) for r in ok),
         "popup_flown_lead_s_median": _median([r.get("popup_flown_lead_s") for r in ok]),
+        **_lead_drift(ok),
         **{f"{k}_breaches": sum(k in r["breaches"] for r in ok) for k in ("clearance", "separation", "ground", "ceiling")},
         "arrived_without_stop": len(clean), "episodes_with_stop": sum(r["stops"] > 0 for r in ok),
         "episodes_with_hold": sum(r["holds"] > 0 for r in ok),
@@ -291,6 +292,22 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "worst_overrun": None if worst is None else {k: worst[k] for k in ("time", "cause", "trigger", "status",
                                                                              "latency_s", "deadline_s", "phases")},
     }
+
+
+INSIDE_LEAD_S = 0.5
+"""A pop-up counts as met inside its drawn lead when the flight met it this much sooner."""
+
+
+def _lead_drift(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    """How far ahead the flights met their pop-ups against how far ahead they were drawn, over
+    the episodes where a UAV closed in: the median drawn lead, the median of the flown lead
+    less the drawn one, and how many pop-ups were met :data:`INSIDE_LEAD_S` or more inside it."""
+    pairs = [(r["popup_lead_s"], r["popup_flown_lead_s"]) for r in rows
+             if r.get("popup_lead_s") is not None and r.get("popup_flown_lead_s") is not None]
+    drift = [flown - drawn for drawn, flown in pairs]
+    return {"popup_lead_s_median": _median([drawn for drawn, _ in pairs]),
+            "popup_lead_drift_s_median": _median(drift),
+            "popups_met_inside_lead": sum(d <= -INSIDE_LEAD_S for d in drift)}
 
 
 def stop_cause(problems: list[str]) -> str:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from replan import popup_reach, popup_swerve, stop_causes  # noqa: E402
+from replan import _lead_drift, popup_reach, popup_swerve, stop_causes  # noqa: E402
 
 NOTICE = 0.2  # a sensor period, a reflex check and the reflex latency (s)
 
@@ -110,3 +110,13 @@ def test_first_stops_are_counted_by_the_cause_the_record_gives():
     assert stop_causes(rows) == {"no feasible plan": 1, "timed plan broke a margin at the pop-up": 1,
                                  "timed plan broke a margin elsewhere": 1, "timing over the limits": 1,
                                  "not recorded": 1}
+
+
+def test_the_lead_drift_counts_popups_met_inside_their_drawn_lead():
+    """Drawn leads 2, 3 and 4 s met 2.2, 2.5 and 3.0 s ahead: drifts +0.2, -0.5, -1.0 (median
+    -0.5), two met half a second or more inside; a row where no UAV closed in is left out."""
+    rows = [{"popup_lead_s": 2.0, "popup_flown_lead_s": 2.2}, {"popup_lead_s": 3.0, "popup_flown_lead_s": 2.5},
+            {"popup_lead_s": 4.0, "popup_flown_lead_s": 3.0}, {"popup_lead_s": 5.0, "popup_flown_lead_s": None}]
+    assert _lead_drift(rows) == {"popup_lead_s_median": 3.0, "popup_lead_drift_s_median": pytest.approx(-0.5),
+                                 "popups_met_inside_lead": 2}
+

@@ -87,8 +87,8 @@ class EventTable(Table):
     """A change at ``time``: ``appear`` (a cylinder ``x``, ``y``, ``radius`` through the whole
     height band, or a ``polygon``, a no-fly zone unless ``height`` makes it a prism from
     ``base``), unknown to the plan until a UAV senses it, and with a ``trigger`` sooner, as soon
-    as the UAV it names (or any) comes ``within`` metres or ``lead`` seconds of it; ``disappear`` (the obstacle ``name``);
-    for an inspection, ``uav_lost`` (the UAV ``uav`` lands where it is) and ``objective`` (an
+    as the UAV it names (or any) comes ``within`` metres or ``lead`` seconds of it; ``disappear``
+    (the obstacle ``name``); for an inspection, ``uav_lost`` (the UAV ``uav`` lands where it is) and ``objective`` (an
     objective table added in flight)."""
 
     time: Seconds

@@ -164,8 +164,9 @@ class Trigger:
     tick of :attr:`Sensing.rate`, true states): the UAV called ``uav`` (``None``: any UAV of the
     team) coming within ``within`` metres (horizontally) of the obstacle's outline, or within
     ``lead`` seconds of breaching its clearance on the trajectory it flies (its body closer to
-    the outline than the required clearance that soon if nothing changed); 0 turns either off. A test of how the team answers an
-    obstacle met a given distance or time ahead, however the flight was re-timed."""
+    the outline than the required clearance that soon if nothing changed); 0 turns either off.
+    A test of how the team answers an obstacle met a given distance or time ahead, however the
+    flight was re-timed."""
 
     uav: str | None
     within: float = 0.0
