@@ -13,10 +13,10 @@ every later run flies the same ones (``--rebuild`` builds them again), so that r
 different code or settings compare episode by episode. A pop-up appears at its time or, sooner,
 once any UAV's reference would breach the required clearance to it within the episode's lead
 (the trigger's ``lead``): a flight re-timed by the receding horizon and the link meets it as
-far ahead of a breach as drawn ahead of contact, whichever UAV comes first. ``--popups placed`` flies the saved
-triggers instead (the UAV it was placed for, as close as the plan had it then: the runs from
-2026-11-27 17:00 to 21:00 UTC, which met some pop-ups 0.5 s ahead of another UAV), ``--popups
-timed`` none (the runs before, which met some pop-ups on the UAV itself).
+far ahead of a breach as drawn ahead of contact, whichever UAV comes first. ``--popups
+placed`` flies the saved triggers instead (the UAV it was placed for, as close as the plan had
+it then: the runs from 2026-11-27 17:00 to 21:00 UTC, which met some pop-ups 0.5 s ahead of
+another UAV), ``--popups timed`` none (the runs before, which met some on the UAV itself).
 
 Every episode is a :func:`staghunt.fly` run with the default settings: re-plans take the wall
 time they really take while the simulated world goes on (``--latency measured``; a number
@@ -436,7 +436,8 @@ def main() -> int:
                     help="only each episode's first re-plan, on the plan, one at a time with the engine's adaptive "
                     "threads (the latency on the whole machine); writes replan_solve.json")
     ap.add_argument("--popups", choices=replan_episodes.POPUPS, default="lead",
-                    help="lead (default): a pop-up appears at its time or once any UAV is its drawn lead from it; "
+                    help="lead (default): a pop-up appears at its time or once any UAV would breach its clearance "
+                    "within its drawn lead; "
                     "placed: the saved trigger, on the UAV it was placed for; timed: at its time only")
     ap.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
                     help="a FlyConfig setting for every episode, e.g. --set replan_rate=0 (repeatable)")

@@ -237,9 +237,9 @@ def to_plain(kind: str, episode: int, waypoints: np.ndarray, dyn: Any, uav: int,
 POPUPS = ("lead", "placed", "timed")
 """How a pop-up appears (:func:`from_plain`): ``lead``, at its time or sooner once any UAV's
 reference would breach the required clearance to it within its drawn lead (``popup_lead_s``;
-the runs since 2026-11-27 21:00 UTC); ``placed``, at its time or sooner once the UAV it was placed for is as close as the plan
-had it then (the saved trigger; the runs from 17:00 to 21:00 UTC); ``timed``, at its time
-only (the runs before)."""
+the runs since 2026-11-27 21:00 UTC); ``placed``, at its time or sooner once the UAV it was
+placed for is as close as the plan had it then (the saved trigger; the runs from 17:00 to 21:00
+UTC); ``timed``, at its time only (the runs before)."""
 
 
 def from_plain(e: dict[str, Any], popups: str = "lead") -> tuple[np.ndarray, Any]:

@@ -110,7 +110,7 @@ def test_a_triggered_popup_appears_when_its_uav_comes_within_its_distance(calm):
             fly(SMALL, events=Dynamics(events=(Event(9.0, "appear", "popup", shape, trigger=bad),)), seed=0, config=FIXED)
 
 
-def test_a_popup_with_a_lead_appears_that_long_before_a_uav_would_touch_it(calm):
+def test_a_popup_with_a_lead_appears_that_long_before_a_uav_would_breach_its_clearance(calm):
     """A trigger naming no UAV, with a lead of 2 s: the pop-up appears at the first sensor tick
     (10 Hz) at which some UAV's reference would come closer to it than the required clearance
     within 2 s, here the calm flight's (nothing changed before), whichever UAV that is."""
@@ -120,8 +120,8 @@ def test_a_popup_with_a_lead_appears_that_long_before_a_uav_would_touch_it(calm)
     (e,) = r.dynamics.events
     reach = np.array([u.radius for u in r.scenario.team])[:, None] + r.scenario.costs.min_clearance
     inside = np.hypot(calm.reference[..., 0] - shape.x, calm.reference[..., 1] - shape.y) < shape.radius + reach
-    touch = min(calm.times[np.argmax(row)] for row in inside if row.any())  # the first breach
-    assert touch - 2.0 - 0.01 <= e.time < touch - 2.0 + 0.1 + 1e-9
+    breach = min(calm.times[np.argmax(row)] for row in inside if row.any())  # the first breach
+    assert breach - 2.0 - 0.01 <= e.time < breach - 2.0 + 0.1 + 1e-9
     assert r.status is FlightStatus.ARRIVED and r.verdict.safe
 
 

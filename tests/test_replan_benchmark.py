@@ -63,7 +63,7 @@ def test_a_popup_trigger_is_where_its_uav_is_lead_seconds_before_contact() -> No
     """The episodes' trigger (replan_episodes._trigger): UAV1 at 4 m/s along x from 0 meets a
     pop-up of radius 2 m at x = 20 (body 1 m) when x = 17, at t = 4.25 s; 2 s before, at x = 9,
     it is 9 m from the outline (one 0.05 s sample: 0.2 m). The plain episode carries it; flown
-    ``placed`` it is that trigger, by default any UAV within the episode's lead of touching it,
+    ``placed`` it is that trigger, by default any UAV within the episode's lead of a breach,
     ``timed`` none."""
     from types import SimpleNamespace
 
@@ -119,4 +119,3 @@ def test_the_lead_drift_counts_popups_met_inside_their_drawn_lead():
             {"popup_lead_s": 4.0, "popup_flown_lead_s": 3.0}, {"popup_lead_s": 5.0, "popup_flown_lead_s": None}]
     assert _lead_drift(rows) == {"popup_lead_s_median": 3.0, "popup_lead_drift_s_median": pytest.approx(-0.5),
                                  "popups_met_inside_lead": 2}
-

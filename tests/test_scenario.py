@@ -464,7 +464,7 @@ def test_round_trip_of_a_triggered_event_and_its_errors() -> None:
     d["events"][0]["trigger"]["uav"] = "C"
     with pytest.raises(ScenarioError, match=r"events\[0\]\.trigger\.uav.*no UAV named 'C'; the team: A, B"):
         scenario_from_dict(d, name="t", base_dir=None)
-    d["events"][0]["trigger"] = {"lead": 2.5}  # any UAV, 2.5 s before it would touch it
+    d["events"][0]["trigger"] = {"lead": 2.5}  # any UAV, 2.5 s before it would breach its clearance
     s = scenario_from_dict(d, name="t", base_dir=None)
     assert s.dynamics.events[0].trigger == Trigger(None, 0.0, 2.5)
     assert scenario_to_dict(s)["events"][0]["trigger"] == {"lead": 2.5}
@@ -478,9 +478,9 @@ def test_round_trip_of_a_triggered_event_and_its_errors() -> None:
 def test_a_trigger_without_a_uav_watches_the_whole_team_by_distance_or_lead() -> None:
     """A pop-up of radius 2 m at the origin; UAVs of radius 1 m, required clearance 1 m (a reach
     of 2 m). UAV1 hovers 3 m from its outline; UAV2's reference comes at it at 4 m/s from
-    10.5 m (within 2 m of the outline in 2.125 s), or from 9.5 m (1.875 s). A lead of 2 s holds for the second only; never for
-    the hovering UAV1, nor for UAV2 when the trigger names UAV1. A distance of 3 m holds for
-    UAV1 at once."""
+    10.5 m (within 2 m of the outline in 2.125 s), or from 9.5 m (1.875 s). A lead of 2 s
+    holds for the second only; never for the hovering UAV1, nor for UAV2 when the trigger names
+    UAV1. A distance of 3 m holds for UAV1 at once."""
     from staghunt.flight.sensor import Sensor
     from staghunt.world import Cylinder
     from staghunt.world.dynamic import Dynamics, Event, Trigger
