@@ -93,7 +93,8 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
                      "solved": x.solved, "committed": x.committed, "sent": x.version > 0,
                      "receding": x.cause is Cause.RECEDING, "max_gap": max(x.nash_gaps, default=None),
                      "trigger": x.trigger, "time": x.time, "phases": {k: round(v, 4) for k, v in x.phases},
-                     "problems": list(x.problems[:2]) if x.stopped else []}
+                     "problems": list(x.problems[:2]) if x.stopped else [],
+                     "later": [[w[0], round(w[1], 2)] for w in x.later]}
                     for x in r.replans],
         "tracking_rms_m": float(np.sqrt(np.mean(r.tracking_rms ** 2))),
         "tracking_max_m": float(r.tracking_max.max()),
@@ -277,6 +278,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         "popups_no_swerve": sum(r.get("popup_swerve_possible") is False for r in ok),
         "arrived_without_stop_swerve_possible": sum(r.get("popup_swerve_possible") is not False for r in clean),
         "episodes_swerve_possible": sum(r.get("popup_swerve_possible") is not False for r in ok),
+        # event plans sent with a conflict with a known motion left beyond the conflict horizon
+        "later_conflicts": sum(bool(x.get("later")) for x in events),
+        "episodes_later_conflicts": sum(any(x.get("later") for x in r["replans"]) for r in ok),
         "deferred_replans": sum(x["status"] == "deferred" for x in events),
         "episodes_deferred": sum(any(x["status"] == "deferred" for x in r["replans"]) for r in ok),
         "episodes_deferred_without_stop": sum(any(x["status"] == "deferred" for x in r["replans"]) and r["stops"] == 0

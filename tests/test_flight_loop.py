@@ -579,3 +579,55 @@ def test_a_stop_and_a_plan_from_rest_record_why_the_swerve_failed():
     out = rp.solve(Start(t_s, ref, s[0], s[1], s[2]), lambda: t_s, 1, [])
     assert out.status is ReplanStatus.STOP_REPLANNED and out.plan is not None
     assert out.problems == ("no feasible plan (test)",)
+
+
+def _crossing_truck(sc, ref, x: float, t_hit: float) -> Dynamics:
+    """A slow truck (1 m/s, radius 2 m) driving north across the team's route at ``x``, at UAV1's
+    row when the reference ``ref`` is there at ``t_hit``."""
+    y1 = float(ref.state(np.array([t_hit]))[0][0, 0, 1])
+    return Dynamics(moving=(MovingCylinder("truck", 2.0, ((x, y1 - 12.0), (x, y1 + 40.0)), 1.0,
+                                           start_time=t_hit - 12.0),))
+
+
+def test_a_plan_whose_only_conflict_is_a_known_motion_beyond_the_horizon_is_accepted_and_recorded():
+    """A moving team re-plans (something sensed) while a truck will cross its route 7 s later:
+    with a conflict horizon of 3 s the new plan is flown and its conflict recorded, left to the
+    station's predicted-conflict re-plan; refused (``later_conflicts=False``, one attempt) the
+    same re-plan stops the team first. The acceptance's rule takes only a conflict with a known motion,
+    and only past the horizon."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import Replanner
+
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    base = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    x_hit = 42.0
+    t_hit = float(np.interp(x_hit, base.state(np.linspace(0, 20, 2001))[0][0, :, 0], np.linspace(0, 20, 2001)))
+    dyn = _crossing_truck(sc, base, x_hit, t_hit)
+    config = replace(FIXED, replan_particles=20, replan_iterations=10, attempts=1, conflict_horizon=3.0)
+    t_s = 2.0
+    assert t_hit > t_s + config.conflict_horizon + 2.0
+    s = base.state(np.array([t_s]))[:, :, 0]
+    start = Start(t_s, base, s[0], s[1], s[2])
+    assert np.linalg.norm(s[1], axis=-1).min() > 2.0  # moving
+    solved = {}
+    for later in (True, False):
+        cfg = replace(config, later_conflicts=later)
+        rp = Replanner(replace(sc, dynamics=dyn), dyn, cfg, get_engine("numba", threads=1), np.random.default_rng(0))
+        solved[later] = rp.solve(start, lambda: t_s, 1, [])
+    out = solved[True]
+    assert out.status is ReplanStatus.REPLANNED and out.plan is not None
+    assert [w[0] for w in out.later] == ["truck"] and min(w[1] for w in out.later) > t_s + config.conflict_horizon
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numpy"), np.random.default_rng(0))
+    verdict = rp.acceptance.check(out.plan, t_s, out.plan.arrival)
+    assert not verdict.safe and {b.other for b in verdict.breaches} == {"truck"}
+    assert rp.acceptance.check(out.plan, t_s, out.plan.arrival, motions=False).safe
+    assert rp.acceptance.later_only(out.plan, verdict, t_s + config.conflict_horizon, rp.acceptance.margins)
+    first = min(w[1] for w in verdict.windows)
+    assert not rp.acceptance.later_only(out.plan, verdict, first + 0.1, rp.acceptance.margins)  # within the horizon
+    rp.known.sensed["post"] = Cylinder(*out.plan.state(np.array([t_s + 1.0]))[0][1, 0, :2], 0.5, "post")
+    assert not rp.acceptance.later_only(out.plan, verdict, t_s + config.conflict_horizon, rp.acceptance.margins)
+    refused = solved[False]  # the moving team stops and re-plans from rest
+    assert refused.status is ReplanStatus.STOP_REPLANNED and not refused.later
+    assert "clearance to truck" in refused.problems[0]

@@ -51,6 +51,11 @@ class FlyConfig:
     - ``reply_start``: the first reply's share of a re-plan's budget.
     - ``attempts``: solves per re-plan (each new predicted conflict with a motion adds its
       swept window and solves again); ``window_pad``: seconds added on both sides of a window.
+    - ``later_conflicts``: a new plan whose only problems are conflicts with known motions
+      that begin more than ``conflict_horizon`` after it starts is accepted; the station's
+      predicted-conflict re-plan meets them when they come within the horizon, as it meets
+      any plan's (``False``: such a plan is refused and the team solves around the motion's
+      window within the same re-plan, or stops).
     - ``defer_stops``: a re-plan of a moving team that finds no plan keeps the current plan and
       solves again (warm-started from its best try) while a stop decided then would still pass
       the acceptance, up to ``deferrals`` times per event, instead of stopping at once.
@@ -98,6 +103,7 @@ class FlyConfig:
     reply_start: float = 0.1
     attempts: int = 3
     window_pad: float = 3.0
+    later_conflicts: bool = True
     defer_stops: bool = True
     deferrals: int = 8
     stop_budget_factor: int = 1
@@ -156,6 +162,7 @@ class FlyConfig:
             ("reply_start", real(self.reply_start) and 0 < self.reply_start <= 1, "a number in (0, 1]"),
             ("attempts", integer(self.attempts) and self.attempts <= 20, "an integer in [1, 20]"),
             ("window_pad", real(self.window_pad) and 0 <= self.window_pad <= 60, "a number in [0, 60] s"),
+            ("later_conflicts", isinstance(self.later_conflicts, bool), "True or False"),
             ("defer_stops", isinstance(self.defer_stops, bool), "True or False"),
             ("deferrals", integer(self.deferrals) and self.deferrals <= 100, "an integer in [1, 100]"),
             ("stop_budget_factor", integer(self.stop_budget_factor) and self.stop_budget_factor <= 100,

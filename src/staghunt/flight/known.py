@@ -182,14 +182,15 @@ class Acceptance:
         return Margins.required(self.scenario).grown(self.allowance)
 
     def check(self, traj: TeamTrajectory, t0: float, t1: float, margins: Margins | None = None,
-              known: KnownWorld | None = None, motion_extra: float = 0.0) -> Verdict:
+              known: KnownWorld | None = None, motion_extra: float = 0.0, motions: bool = True) -> Verdict:
         """Judge ``traj`` over ``[t0, t1]`` (``margins``: other margins than :attr:`margins`;
         ``known``: another view of the site; ``motion_extra``: metres more from the known
-        motions)."""
+        motions; ``motions=False``: the fixed and sensed obstacles, team-mates, ground and
+        ceiling only)."""
         sc = self.scenario
         t = np.linspace(t0, max(t1, t0), max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
         pos = traj.state(t)[0]
-        scene = Scene.fixed(sc.world, *(known or self.known).shapes(), motions=self.dyn)
+        scene = Scene.fixed(sc.world, *(known or self.known).shapes(), motions=self.dyn if motions else None)
         closing = (sc.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2 + motion_extra
         return judge(scene, np.array([u.radius for u in sc.team]), t, pos, margins or self.margins,
                      [u.name for u in sc.team], motion_margin=closing)
@@ -222,6 +223,18 @@ class Acceptance:
                                 f"t = {t[k]:.1f} s (required more than {need[i]:.2f} m)")
         return problems
 
+    def later_only(self, new: Reference, verdict: Verdict, after: float, margins: Margins) -> bool:
+        """Whether ``new``, refused by ``verdict`` (its check with ``margins``), breaks nothing
+        but the clearance of known motions, and that only from ``after`` on (a re-plan's start
+        plus the conflict horizon, ``FlyConfig.later_conflicts``): the station's
+        predicted-conflict re-plan meets those conflicts when they come within the horizon, as
+        it meets any plan's, and the plan is flown meanwhile (a moving team's re-plan has no
+        time left for another solve around a window tens of seconds away: refused, the plan
+        stopped the team)."""
+        if not verdict.windows or min(a for _, a, _ in verdict.windows) <= after:
+            return False
+        return self.check(new, new.pieces[0].t0, new.arrival, margins, motions=False).safe
+
     def problem_margins(self, clearance: float) -> Margins:
         """The acceptance's margins for a re-plan whose game keeps ``clearance`` to obstacles
         (:data:`CURVE_SLACK` less, at least 0)."""
@@ -247,6 +260,31 @@ def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, 
     keep_c = tuple(c for c in cyl if np.all(static_clearance((c,), (), ends[:, None], r) >= need))
     keep_p = tuple(p for p in prm if np.all(static_clearance((), (p,), ends[:, None], r) >= need))
     return keep_c, keep_p
+
+
+def game_problem(scenario: Scenario, dyn: Dynamics, accepted: Margins, starts: np.ndarray,
+                 cyl: tuple[Cylinder, ...], prm: tuple[Prism, ...], windows: list[tuple[str, float, float]],
+                 goals: np.ndarray | None = None) -> Scenario:
+    """The scenario a re-plan's team solves: the known obstacles ``cyl``, ``prm`` plus the
+    swept stand-ins of the ``windows``, the ``starts`` ``(N, 3)`` and ``goals`` (default the
+    scenario's) as ``x, y, h``, the clearance and ``d_s`` grown as the acceptance's margins
+    ``accepted`` ask plus the curve's and timing's slack (:func:`game_margins`). A UAV whose
+    start is already closer than that to an obstacle (a stop short of a pop-up) relaxes the
+    clearance to what it has, so that a path away from it exists: its paths may leave
+    sideways, not come closer (the solver's plans lie on their constraints: relaxed to a share
+    of it, they came closer than the UAV's own reflex lets a reference come, it held, and
+    re-planned from there closer still: scenario2 episode 67 of benchmarks/replan.py)."""
+    sub = sub_scenario(scenario, starts, cyl, prm, goals)
+    more_c, more_p = swept_obstacles(sub, dyn, windows)
+    sub = sub_scenario(scenario, starts, cyl + more_c, prm + more_p, goals)
+    need, d_s = game_margins(accepted)
+    sub = replace(sub, costs=replace(sub.costs, safe_distance=d_s, min_clearance=need))
+    at = to_absolute(sub.world.terrain, starts[:, None])
+    r = np.array([u.radius for u in sub.team])
+    have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
+    if have < need:
+        sub = replace(sub, costs=replace(sub.costs, min_clearance=max(0.0, have)))
+    return sub
 
 
 def covers(a: tuple[str, float, float], b: tuple[str, float, float]) -> bool:

@@ -71,7 +71,9 @@ class ReplanRecord:
     (0: none sent); ``committed``: every UAV acknowledged it before it started;
     ``certified_after_s``: a plan sent uncertified at its deadline is certified by the station's
     next job, this long (wall time) after it was sent (0: certified before). ``phases``: where
-    the wall time went (:class:`Laps`), ``(part, seconds)`` in the order first timed."""
+    the wall time went (:class:`Laps`), ``(part, seconds)`` in the order first timed.
+    ``later``: the plan sent still conflicts with these known motions ``(name, from, to)``, all
+    more than the conflict horizon after it starts (:attr:`Solved.later`)."""
 
     time: float
     switch_time: float
@@ -95,6 +97,7 @@ class ReplanRecord:
     committed: bool = False
     certified_after_s: float = 0.0
     phases: tuple[tuple[str, float], ...] = ()
+    later: tuple[tuple[str, float, float], ...] = ()
 
     @property
     def solved(self) -> bool:
@@ -118,6 +121,7 @@ class ReplanRecord:
             "evaluations": self.evaluations, "attempts": self.attempts, "nash_gaps": list(self.nash_gaps),
             "certified": self.certified, "verdict": self.verdict, "problems": list(self.problems),
             "windows": [{"obstacle": w[0], "from": round(w[1], 3), "to": round(w[2], 3)} for w in self.windows],
+            "later_conflicts": [{"obstacle": w[0], "from": round(w[1], 3), "to": round(w[2], 3)} for w in self.later],
             "state_error_m": self.state_error_m, "version": self.version, "committed": self.committed,
             "certified_after_s": self.certified_after_s, "phases": dict(self.phases),
         }
@@ -160,3 +164,7 @@ class Solved:
     game: tuple[Scenario, np.ndarray, float] | None = None
     """The game the plan is a solution of (its problem, the ``(N, K, 3)`` plan, the heading
     half-width), to certify the plan later if no certificate fit before the deadline."""
+    later: tuple[tuple[str, float, float], ...] = ()
+    """Conflicts with known motions ``(name, from, to)`` the plan still has, all more than the
+    conflict horizon after it starts: left to the station's predicted-conflict re-plans
+    (``FlyConfig.later_conflicts``)."""

@@ -9,7 +9,7 @@ in, carried to ``t_s`` (:meth:`Start.measured`). It
    current plan is ``horizon`` seconds on), the switch positions as starts (moving: their
    lead-in points, each UAV's stopping distance ahead along its velocity), the static and
    sensed obstacles and the swept volumes of the known motions over the predicted conflicts'
-   windows, with the margins grown for the tracking allowance (:meth:`Replanner._problem`);
+   windows, with the margins grown for the tracking allowance (:func:`~staghunt.flight.known.game_problem`);
 2. warm-starts the game from the current plan, pushed clear of a new obstacle that cuts it, and runs
    the rounds until they converge or the deadline's game share is spent (:func:`staghunt.solvers.improve.anytime_rounds`);
 3. times the new paths from the measured state and accepts them with the one safety judge
@@ -42,8 +42,8 @@ from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.flight import aside
 from staghunt.flight.config import FlyConfig
 from staghunt.flight.fallback import Fallback, stopping
-from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_margins, sub_scenario, swept_obstacles,
-                                   route_beyond, to_xyh, warm_plan)
+from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_problem, route_beyond, to_xyh,
+                                   warm_plan)
 from staghunt.flight.records import Laps, ReplanStatus, Solved
 from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
@@ -99,6 +99,8 @@ class _Attempt:
     azimuth: float
     windows: list[tuple[str, float, float]]
     timing: tuple[Any, ...] = ()
+    later: tuple[tuple[str, float, float], ...] = ()
+    """The plan's conflicts with known motions left to the horizon (:meth:`Acceptance.later_only`)."""
 
 
 def _passed(rest: tuple[_Attempt | None, Any] | None) -> bool:
@@ -129,6 +131,8 @@ class Replanner:
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
         self.hint: np.ndarray | None = None  # (N, K, 3) the best try of a deferred re-plan
         self.laps = Laps()  # where the last solve's wall time went
+        self.later: dict[int, tuple[tuple[str, float, float], ...]] = {}  # plans passed by _later: their windows
+        self.answers_event = True  # the solve answers an event (not a receding-horizon re-plan)
         if self._workers > 1:
             aside.start(PRELOAD)
 
@@ -147,6 +151,8 @@ class Replanner:
         best try (:attr:`hint`); no plan from rest is solved then."""
         cfg, sc = self.config, self.scenario
         laps = self.laps = Laps()
+        self.later.clear()
+        self.answers_event = fallback
         deadline = deadline or Deadline()
         full = max(0.0, deadline.left()) if deadline.end is not None else 0.0
         game = Deadline(None if deadline.end is None else deadline.end - (1 - GAME_SHARE) * full)
@@ -229,11 +235,12 @@ class Replanner:
         self.certificate_s = deadline.certificate_s
         laps.lap("certificate")
         cert = done.certificate
+        later = chosen.later if done.flown is chosen.plan else self.later.get(id(done.flown), ())
         if cert is None:
             return Solved(done.flown, status, spent + done.spent, tries, verdict="not certified: " + "; ".join(done.notes),
-                          problems=why, windows=used, game=(chosen.sub, done.plan, chosen.azimuth))
+                          problems=why, windows=used, game=(chosen.sub, done.plan, chosen.azimuth), later=later)
         return Solved(done.flown, status, spent + done.spent, tries, tuple(float(u.relative) for u in cert.uavs),
-                      cert.is_equilibrium, cert.verdict, why, used)
+                      cert.is_equilibrium, cert.verdict, why, used, later=later)
 
     def certify(self, game: tuple[Scenario, np.ndarray, float]) -> tuple[tuple[float, ...], bool, str, int]:
         """The certificate of a plan sent uncertified (``Solved.game``), made later, with no
@@ -335,9 +342,15 @@ class Replanner:
             new = Reference((head, piece) if head is not None else (piece,))
             verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
             problems = verdict.problems([u.name for u in sc.team])
+            later = (self.config.later_conflicts and self.answers_event
+                     and self.acceptance.later_only(new, verdict, start.t_s + self.config.conflict_horizon, margins))
+            if later:
+                problems = []
             if not problems and head is None and self.config.straggler_check:
                 problems = self.acceptance.stragglers(new, start.base, start.t_s, self.learn_s)
             if not problems:
+                if later:
+                    self.later[id(new)] = tuple(verdict.windows)
                 return new, [], list(verdict.windows)
             first = first or (problems, list(verdict.windows))
         assert first is not None
@@ -393,7 +406,7 @@ class Replanner:
         spent = 0
         timing = (start, max_stretch, lead, tail, head)
         for attempt in range(1, tries + 1):
-            sub = self._problem(starts, cyl, prm, windows, goals)
+            sub = game_problem(self.scenario, self.dyn, self.acceptance.margins, starts, cyl, prm, windows, goals)
             model = CostModel.from_scenario(sub)
             try:
                 out = anytime_rounds(model, warm, settings, rng, engine.run_swarm, engine, budget, deadline,
@@ -412,31 +425,10 @@ class Replanner:
             done = new is not None or found is None  # passed, or the timing itself failed
             fresh = [] if done else [w for w in found if not any(covers(o, w) for o in windows)]
             if done or not fresh or deadline.passed:
-                return _Attempt(new, out, sub, problems, attempt, spent, azimuth, windows, timing)
+                later = self.later.get(id(new), ()) if new is not None else ()
+                return _Attempt(new, out, sub, problems, attempt, spent, azimuth, windows, timing, later)
             windows.extend((n, max(start.t_s, a - cfg.window_pad), b + cfg.window_pad) for n, a, b in fresh)
         return _Attempt(None, out, sub, problems, tries, spent, azimuth, windows, timing)
-
-    def _problem(self, starts: np.ndarray, cyl: tuple[Any, ...], prm: tuple[Any, ...],
-                 windows: list[tuple[str, float, float]], goals: np.ndarray | None = None) -> Scenario:
-        """The scenario the team solves: known obstacles plus the swept stand-ins of the windows,
-        goals (default the scenario's), the clearance and ``d_s`` grown as the acceptance asks
-        plus the curve's and timing's slack (:mod:`~staghunt.flight.known`). A UAV whose start
-        is already closer than that to an obstacle (a stop short of a pop-up) relaxes the
-        clearance to what it has, so that a path away from it exists: its paths may leave
-        sideways, not come closer (the solver's plans lie on their constraints: relaxed to a share
-        of it, they came closer than the UAV's own reflex lets a reference come, it held, and
-        re-planned from there closer still: scenario2 episode 67 of benchmarks/replan.py)."""
-        sub = sub_scenario(self.scenario, starts, cyl, prm, goals)
-        more_c, more_p = swept_obstacles(sub, self.dyn, windows)
-        sub = sub_scenario(self.scenario, starts, cyl + more_c, prm + more_p, goals)
-        need, d_s = game_margins(self.acceptance.margins)
-        sub = replace(sub, costs=replace(sub.costs, safe_distance=d_s, min_clearance=need))
-        at = to_absolute(sub.world.terrain, starts[:, None])
-        r = np.array([u.radius for u in sub.team])
-        have = float(static_clearance(sub.world.cylinders, sub.world.prisms, at, r).min(initial=math.inf))
-        if have < need:
-            sub = replace(sub, costs=replace(sub.costs, min_clearance=max(0.0, have)))
-        return sub
 
 
 PRELOAD = __name__

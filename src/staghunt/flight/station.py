@@ -314,7 +314,8 @@ class GroundStation:
             "measured" if cfg.measured else "fixed", release, solved.evaluations, solved.attempts,
             solved.nash_gaps if status.solved else (), solved.certified and status.solved,
             solved.verdict if status.solved else "", solved.problems, solved.windows, error, late,
-            message.version if message is not None else 0, phases=(("start", before), *self.replanner.laps.items())))
+            message.version if message is not None else 0, phases=(("start", before), *self.replanner.laps.items()),
+            later=solved.later if plan is not None and status.solved else ()))
         self.job = _Job(release, message, len(self.records) - 1, trigger.cause)
         self.to_certify = None
         if message is not None and status.solved and not solved.certified and solved.game is not None:
