@@ -281,6 +281,9 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         # event plans sent with a conflict with a known motion left beyond the conflict horizon
         "later_conflicts": sum(bool(x.get("later")) for x in events),
         "episodes_later_conflicts": sum(any(x.get("later") for x in r["replans"]) for r in ok),
+        # event re-plans that slowed the team on its paths to let a known motion pass first
+        "yields": sum(x["status"] == "yield" for x in events),
+        "episodes_yield": sum(any(x["status"] == "yield" for x in r["replans"]) for r in ok),
         "deferred_replans": sum(x["status"] == "deferred" for x in events),
         "episodes_deferred": sum(any(x["status"] == "deferred" for x in r["replans"]) for r in ok),
         "episodes_deferred_without_stop": sum(any(x["status"] == "deferred" for x in r["replans"]) and r["stops"] == 0

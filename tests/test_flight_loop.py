@@ -18,7 +18,7 @@ from staghunt import load_scenario
 from staghunt.flight import Cause, FlightStatus, FlyConfig, Outage, ReplanStatus, fly
 from staghunt.safety import BreachKind, Severity
 from staghunt.safety.measure import moving_clearance
-from staghunt.trajectory.quintic import Reference, stop_piece, timed_path
+from staghunt.trajectory.quintic import Reference, slow_piece, stop_piece, timed_path
 from staghunt.world import Cylinder
 from staghunt.world.dynamic import Dynamics, Event, MovingCylinder, SlewingJib, Trigger
 
@@ -581,12 +581,21 @@ def test_a_stop_and_a_plan_from_rest_record_why_the_swerve_failed():
     assert out.problems == ("no feasible plan (test)",)
 
 
-def _crossing_truck(sc, ref, x: float, t_hit: float) -> Dynamics:
-    """A slow truck (1 m/s, radius 2 m) driving north across the team's route at ``x``, at UAV1's
-    row when the reference ``ref`` is there at ``t_hit``."""
+def _crossing_truck(sc, ref, x: float, t_hit: float, speed: float = 1.0) -> Dynamics:
+    """A truck (radius 2 m, ``speed`` m/s) driving north across the team's route at ``x``, at
+    UAV1's row when the reference ``ref`` is there at ``t_hit``."""
     y1 = float(ref.state(np.array([t_hit]))[0][0, 0, 1])
-    return Dynamics(moving=(MovingCylinder("truck", 2.0, ((x, y1 - 12.0), (x, y1 + 40.0)), 1.0,
+    return Dynamics(moving=(MovingCylinder("truck", 2.0, ((x, y1 - 12.0 * speed), (x, y1 + 60.0)), speed,
                                            start_time=t_hit - 12.0),))
+
+
+def _team_across_the_small_site():
+    """The small site, two UAVs flying east in parallel (timed from rest), and when UAV1 passes x = 42."""
+    sc = load_scenario(SMALL)
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    base = Reference((timed_path(pts, 0.0, sc.vehicle),))
+    t = np.linspace(0, 20, 2001)
+    return sc, base, 42.0, float(np.interp(42.0, base.state(t)[0][0, :, 0], t))
 
 
 def test_a_plan_whose_only_conflict_is_a_known_motion_beyond_the_horizon_is_accepted_and_recorded():
@@ -599,11 +608,7 @@ def test_a_plan_whose_only_conflict_is_a_known_motion_beyond_the_horizon_is_acce
     from staghunt.flight.known import Start
     from staghunt.flight.replan import Replanner
 
-    sc = load_scenario(SMALL)
-    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
-    base = Reference((timed_path(pts, 0.0, sc.vehicle),))
-    x_hit = 42.0
-    t_hit = float(np.interp(x_hit, base.state(np.linspace(0, 20, 2001))[0][0, :, 0], np.linspace(0, 20, 2001)))
+    sc, base, x_hit, t_hit = _team_across_the_small_site()
     dyn = _crossing_truck(sc, base, x_hit, t_hit)
     config = replace(FIXED, replan_particles=20, replan_iterations=10, attempts=1, conflict_horizon=3.0)
     t_s = 2.0
@@ -631,3 +636,45 @@ def test_a_plan_whose_only_conflict_is_a_known_motion_beyond_the_horizon_is_acce
     refused = solved[False]  # the moving team stops and re-plans from rest
     assert refused.status is ReplanStatus.STOP_REPLANNED and not refused.later
     assert "clearance to truck" in refused.problems[0]
+
+
+def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner_than_a_detour(monkeypatch):
+    """A truck (4 m/s) crosses the small site where the team will pass. The team flies its
+    paths on, slowed in sync (``yield``), arriving the first of the delays tried later that
+    lets the truck pass, clear of it; the moving solve's detour round the truck's swept window
+    passes too but arrives later, so the re-plan sends the yield (no stop, no detour)."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.fallback import YIELD_DELAYS
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import Replanner
+
+    sc, base, x_hit, t_hit = _team_across_the_small_site()
+    dyn = _crossing_truck(sc, base, x_hit, t_hit, speed=4.0)
+    config = replace(FIXED, replan_particles=20, replan_iterations=10, attempts=1)
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
+    t_s = 2.0
+    found = rp.acceptance.check(base, t_s, base.arrival).windows
+    assert [w[0] for w in found] == ["truck"] and found[0][1] > t_s + 2.0  # the plan flown meets the truck
+    plan = rp.fallback.yield_to(base, t_s)
+    assert plan is not None and plan.pieces[0].kind == "slow"
+    delay = plan.arrival - base.arrival
+    assert delay == pytest.approx(next(d for d in YIELD_DELAYS if abs(d - delay) < 1e-6))
+    v = rp.acceptance.check(plan, t_s, plan.arrival)
+    assert v.safe and not v.windows
+    t = np.linspace(t_s, plan.arrival, 2001)
+    tau = plan.pieces[0].warp(t)[0]
+    np.testing.assert_allclose(plan.state(t)[0], base.state(np.minimum(tau, base.arrival))[0], atol=1e-9)
+    for shorter in (d for d in YIELD_DELAYS if d < delay - 1e-6):  # each shorter delay still meets the truck
+        for factor in (0.25, 0.1):
+            piece = slow_piece(base, t_s, sc.vehicle, shorter, factor)
+            assert piece is None or not rp.acceptance.check(Reference((piece,)), t_s, piece.t1).safe
+    s = base.state(np.array([t_s]))[:, :, 0]
+    windows = [(n, max(t_s, a - config.window_pad), b + config.window_pad) for n, a, b in found]
+    start = Start(t_s, base, s[0], s[1], s[2])
+    out = rp.solve(start, lambda: t_s, 1, windows)
+    assert out.status is ReplanStatus.YIELD and not out.status.stopped and not out.status.solved
+    assert out.plan.arrival == pytest.approx(plan.arrival) and rp.acceptance.check(out.plan, t_s, out.plan.arrival).safe
+    monkeypatch.setattr(type(rp.fallback), "yield_to", lambda *a, **k: None)
+    rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
+    detour = rp.solve(start, lambda: t_s, 1, windows)
+    assert detour.status is ReplanStatus.REPLANNED and detour.plan.arrival > out.plan.arrival + 1.0

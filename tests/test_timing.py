@@ -182,3 +182,39 @@ def test_a_timing_the_start_itself_breaks_gives_up_once_stretching_stops_helping
         timed_path(pts, 0.0, VehicleLimits(), np.array([[-1.77, -5.52, -2.59]]))
     stretch = float(re.search(r"after a stretch of ([0-9.e+]+)", str(err.value)).group(1))
     assert stretch < STALL_STRETCH * 2.0 ** (STALL_TRIES + 1)
+
+
+def test_a_slow_down_keeps_the_paths_and_continuity_and_arrives_exactly_its_delay_later():
+    """:func:`slow_piece` on a straight team flight at cruise: hand-checked warp (``tau'`` at the
+    hold is the factor, the delay is ``(1 - factor)(ramp + hold)``), positions on the same paths
+    at the warped time, no jump at the splice, the acceleration limit kept, rest at the end."""
+    from staghunt.trajectory.quintic import Reference, slow_piece, timed_path
+    from staghunt.trajectory.warp import slow_warp
+
+    s = np.array([0.0, 0.5, 1.0, 2.0, 3.0, 3.5, 4.0, 9.0])
+    tau, d1, d2 = slow_warp(s, 1.0, 2.0, 0.25)  # ramp 1 s, hold 2 s, a quarter of the pace
+    np.testing.assert_allclose(d1, [1.0, 0.625, 0.25, 0.25, 0.25, 0.625, 1.0, 1.0])
+    np.testing.assert_allclose(d2[[0, 2, 3, 4, 6, 7]], 0.0, atol=1e-12)
+    assert d2[1] == pytest.approx(-0.75 * 1.5) and d2[5] == pytest.approx(0.75 * 1.5)  # 6 x (1 - x) / ramp
+    # behind by (1 - 0.25)(1/2 + 2 + 1/2) = 2.25 s once it is over; 0.75 x (1/2 - (1/8 - 1/32)) at 0.5 s
+    np.testing.assert_allclose(tau[[6, 7]], s[[6, 7]] - 2.25)
+    assert tau[1] == pytest.approx(0.5 - 0.75 * (0.125 - 0.03125))
+    pts = np.array([[[5, 15, 12], [30, 15, 12], [55, 15, 12]], [[5, 23, 12], [30, 23, 12], [55, 23, 12]]], float)
+    ref = Reference((timed_path(pts, 0.0, LIMITS),))
+    piece = slow_piece(ref, 3.0, LIMITS, 3.0, 0.25)
+    assert piece is not None and piece.kind == "slow"
+    new = ref.spliced(piece)
+    assert new.arrival == pytest.approx(ref.arrival + 3.0)
+    t = np.linspace(3.0, new.arrival, 3001)
+    here = new.state(t)
+    np.testing.assert_allclose(here[0], ref.state(np.minimum(piece.warp(t)[0], ref.arrival))[0], atol=1e-9)
+    before, after = ref.state(np.array([3.0])), new.state(np.array([3.0]))
+    np.testing.assert_allclose(after[:3], before[:3], atol=1e-9)  # position, velocity, acceleration
+    assert np.linalg.norm(here[2], axis=-1).max() <= LIMITS.max_acceleration
+    assert np.linalg.norm(here[1][:, -1], axis=-1).max() == 0.0
+    ramp, (hold, factor) = piece.duration, piece.slow
+    during = (t > 3.0 + ramp) & (t < 3.0 + ramp + hold)
+    base_speed = np.linalg.norm(ref.state(piece.warp(t[during])[0])[1], axis=-1)
+    np.testing.assert_allclose(np.linalg.norm(here[1][:, during], axis=-1), factor * base_speed, rtol=1e-9)
+    assert base_speed.min() > 4.0  # cruising there: the team goes on at a quarter of that, never hovering
+    assert slow_piece(ref, 3.0, LIMITS, 30.0, 0.25) is None  # the flight ends before such a slow-down is over

@@ -20,9 +20,14 @@ from staghunt.flight.known import Acceptance
 from staghunt.flight.records import ReplanStatus
 from staghunt.safety.measure import static_clearance
 from staghunt.solvers.improve import Deadline
-from staghunt.trajectory.quintic import Piece, Reference, stop_piece, timed_path
-from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track
+from staghunt.trajectory.quintic import Piece, Reference, slow_piece, stop_piece, timed_path
+from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time
 
+YIELD_DELAYS = (1.0, 2.0, 3.0, 5.0, 8.0, 12.0)
+"""Seconds a yield (:meth:`Fallback.yield_to`) may delay the team's arrival, tried in this order."""
+YIELD_FACTORS = (0.25, 0.1)
+"""Shares of its planned pace a yield slows the team to, tried in this order for each delay
+(never a hover: that is a stop)."""
 EMERGENCY_FACTORS = (2.0, 3.0)
 """Multiples of ``max_acceleration`` an emergency stop may brake at, tried in this order: the
 mission limit (3 m/s^2 by default) is well below a multirotor's capability (the simulated
@@ -84,6 +89,30 @@ class Fallback:
             return moved, ReplanStatus.SIDESTEP
         soon = t_soon()
         return self.stop(base, soon, max(t_s, soon))
+
+    def yield_to(self, base: TeamTrajectory, t_s: float, deadline: Deadline | None = None) -> Reference | None:
+        """The team's current paths flown from ``t_s`` on, slowed in sync to one of
+        :data:`YIELD_FACTORS` of their pace and sped up again
+        (:func:`~staghunt.trajectory.quintic.slow_piece`) so as to arrive the first of
+        :data:`YIELD_DELAYS` later that passes the acceptance to the end (sought until
+        ``deadline``); ``None`` if none does. Path-velocity decomposition (Kant
+        and Zucker 1986): the paths keep every margin to what does not move and to each other,
+        and only the timing changes, so that a known motion crossing them passes first; the
+        paths are the plan's, so is the game they solve."""
+        limits = self.acceptance.scenario.vehicle
+        if not self.acceptance.check(base, t_s, end_time(base), motions=False).safe:
+            return None  # blocked by what does not move: no timing helps
+        for delay in YIELD_DELAYS:
+            for factor in YIELD_FACTORS:
+                piece = slow_piece(base, t_s, limits, delay, factor)
+                if piece is None:
+                    continue
+                plan = Reference((piece,))
+                if self.acceptance.check(plan, t_s, piece.t1).safe:
+                    return plan
+                if deadline is not None and deadline.passed:
+                    return None
+        return None
 
     def stop(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Reference, ReplanStatus]:
         """A synchronised stop at ``t_s`` within ``max_acceleration``; if that stop would come

@@ -95,7 +95,7 @@ def _going(traj: TeamTrajectory, t: float, row: int) -> tuple[TeamTrajectory, in
         return _going(traj.parts[row], t, traj.rows[row])
     if isinstance(traj, Reference):
         return _going(traj.piece_at(t), t, row)
-    if isinstance(traj, Piece) and traj.kind == "stop" and traj.base is not None:
+    if isinstance(traj, Piece) and traj.kind in ("stop", "slow") and traj.base is not None:
         return _going(traj.base, float(traj.warp(np.array([t]))[0][0]), row)
     return traj, row, t
 

@@ -204,10 +204,18 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
-        if first.plan is None and can_defer:
-            self.hint = first.out.plan if first.out is not None else None
-            return Solved(None, ReplanStatus.DEFERRED, spent, tries, problems=tuple(first.problems[:5]),
-                          windows=tuple(sorted(set(first.windows))))
+        # known motions in the way of an event's re-plan: a yield to them (Fallback.yield_to: the
+        # current paths, slowed in sync) when it arrives no later than the plan from the moving
+        # state (a detour round a motion's swept window) or there is none; else a deferred stop
+        yielded = self.fallback.yield_to(base, t_s, deadline) if first.windows and fallback and not at_rest else None
+        if yielded is not None and first.plan is not None and first.plan.arrival < yielded.arrival:
+            yielded = None
+        if yielded is not None or (first.plan is None and can_defer):
+            laps.lap("fallback")
+            if yielded is None:
+                self.hint = first.out.plan if first.out is not None else None
+            return Solved(yielded, ReplanStatus.DEFERRED if yielded is None else ReplanStatus.YIELD, spent, tries,
+                          problems=tuple(first.problems[:5]), windows=tuple(sorted(set(first.windows))))
         chosen, status, why = first, ReplanStatus.REPLANNED, ()
         if first.plan is None and rest is not None:
             if rest.plan is not None:  # why the swerve failed stays on the record

@@ -33,7 +33,6 @@ with shared knot times; a quintic interpolating B-spline takes exactly those end
 from __future__ import annotations
 
 import math
-from functools import lru_cache
 from dataclasses import dataclass
 from typing import Literal
 
@@ -43,6 +42,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 from staghunt.task import VehicleLimits
 from staghunt.trajectory.team import Still, TeamTrajectory, end_time
 from staghunt.trajectory.timing import merge_waypoints, split_legs
+from staghunt.trajectory.warp import BRAKE_RAMP, brake_warp, slow_warp
 
 CHECK_STEP_S = 0.02
 """Grid of the speed and acceleration checks (s)."""
@@ -63,15 +63,18 @@ class Piece:
     """One piece of the reference, valid from ``t0`` (s after take-off) until the next piece
     starts; after ``t1`` the team holds the piece's last point.
 
-    - ``kind``: ``"path"`` (a timed path) or ``"stop"`` (a synchronised stop of ``base``).
+    - ``kind``: ``"path"`` (a timed path), ``"stop"`` (a synchronised stop of ``base``) or
+      ``"slow"`` (``base`` slowed down in sync and sped up again: :func:`slow_piece`).
     - ``spline``: for a path, a :class:`BSpline` over ``[t0, t1]`` with values ``(N, 3)``.
     - ``base``, ``duration``: for a stop, the trajectory it slows down (a piece, or any
-      :class:`~staghunt.trajectory.team.TeamTrajectory`) and the warp's length ``T``.
+      :class:`~staghunt.trajectory.team.TeamTrajectory`) and the warp's length ``T``; for a
+      slow-down, ``base``, the length of each of its two ramps, and ``slow`` = ``(hold, factor)``
+      (:func:`~staghunt.trajectory.warp.slow_warp`).
     - ``knots``: ``(M,)`` the waypoint times; ``points``: ``(N, M, 3)`` the planned points
       (a stop of a trajectory other than a piece: its positions at ``t0`` and at rest).
     """
 
-    kind: Literal["path", "stop"]
+    kind: Literal["path", "stop", "slow"]
     t0: float
     t1: float
     knots: np.ndarray
@@ -80,6 +83,7 @@ class Piece:
     base: "TeamTrajectory | None" = None
     duration: float = 0.0
     brake: bool = False
+    slow: tuple[float, float] = ()
 
     @property
     def n_uavs(self) -> int:
@@ -90,9 +94,13 @@ class Piece:
         return np.full(self.n_uavs, self.t0), np.full(self.n_uavs, self.t1)
 
     def warp(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """A stop's ``tau, tau', tau''`` at times ``t`` ``(T,)``: the smooth warp of the module
-        docstring, or (``brake``) :func:`brake_warp`."""
+        """A stop's (or slow-down's) ``tau, tau', tau''`` at times ``t`` ``(T,)``: the smooth
+        warp of the module docstring, (``brake``) :func:`brake_warp`, or (``slow``)
+        :func:`~staghunt.trajectory.warp.slow_warp`."""
         T = self.duration
+        if self.slow:
+            tau, d1, d2 = slow_warp(t - self.t0, T, *self.slow)
+            return self.t0 + tau, d1, d2
         u = np.clip((t - self.t0) / T, 0.0, 1.0)
         if self.brake:
             tau_u, d1, d2u = brake_warp(u)
@@ -370,35 +378,6 @@ def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray
     return sorted(found, key=lambda p: p.t1)
 
 
-BRAKE_RAMP = 0.1
-"""Share of a braking stop's duration over which its deceleration ramps up (and down)."""
-
-
-@lru_cache(maxsize=1)
-def _brake_table(n: int = 4001) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``u``, ``tau(u)``, ``tau'(u)``, ``tau''(u)`` of :func:`brake_warp` on a grid of ``n``."""
-    u = np.linspace(0.0, 1.0, n)
-    r = BRAKE_RAMP
-    x = np.clip(np.minimum(u, 1.0 - u) / r, 0.0, 1.0)
-    g = 3.0 * x**2 - 2.0 * x**3  # 0 at both ends, 1 in between
-    du = u[1] - u[0]
-    G = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * du)])
-    d2 = -g / G[-1]
-    d1 = 1.0 - G / G[-1]
-    tau = np.concatenate([[0.0], np.cumsum(0.5 * (d1[1:] + d1[:-1]) * du)])
-    return u, tau, d1, d2
-
-
-def brake_warp(u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The warp of an emergency stop on ``u = (t - t_s) / T`` in ``[0, 1]``: ``tau / T``,
-    ``tau'`` and ``T tau''``. Its deceleration ramps up over :data:`BRAKE_RAMP` of ``T`` (a
-    smoothstep, so ``tau'' = 0`` at both ends and the splice stays continuous in acceleration),
-    holds, and ramps down: it stops in ``v^2 / (2 a (1 - BRAKE_RAMP))`` at a peak deceleration
-    ``a``, against ``1.5 v^2 / (2 a)`` for the smooth warp."""
-    grid, tau, d1, d2 = _brake_table()
-    return np.interp(u, grid, tau), np.interp(u, grid, d1), np.interp(u, grid, d2)
-
-
 def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bool = False) -> Piece:
     """A synchronised stop starting at ``t_s``: ``ref`` (of a :class:`Reference`, the piece
     flown at ``t_s``) slowed down to rest with one common time warp (module docstring;
@@ -432,3 +411,32 @@ def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bo
             return piece
         T *= 1.1
     return piece
+
+
+def slow_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, delay: float, factor: float) -> Piece | None:
+    """``ref`` (of a :class:`Reference`, the piece flown at ``t_s``) flown on the same paths from
+    ``t_s``, arriving ``delay`` seconds later: its time slowed in sync to ``factor`` of its pace
+    and sped up again (:func:`~staghunt.trajectory.warp.slow_warp`; every UAV stays on its path
+    and the team keeps its relative timing), each ramp as short as ``max_acceleration`` allows
+    and at least 0.5 s. ``None`` if ``ref`` ends before the slow-down is over."""
+    base = ref.piece_at(t_s) if isinstance(ref, Reference) else ref
+    last = end_time(base)
+    span = delay / (1.0 - factor)  # ramp + hold
+    t = np.linspace(t_s, min(last, t_s + span + 1.0), max(2, math.ceil(min(last - t_s, span + 1.0) / CHECK_STEP_S) + 1))
+    s = base.state(t)
+    v = float(np.linalg.norm(s[1], axis=-1).max())
+    ramp = max(0.5, 1.5 * (1.0 - factor) * v / (MARGIN * limits.max_acceleration))
+    if isinstance(base, Piece):
+        knots, points = base.knots, base.points
+    else:
+        knots, points = np.array([t_s]), s[0][:, :1]
+    while ramp <= span:
+        piece = Piece("slow", t_s, last + delay, knots, points, base=base, duration=ramp, slow=(span - ramp, factor))
+        end = t_s + ramp + span  # the warp's end; the base then goes on `delay` behind its time
+        if end - delay > last:
+            return None
+        grid = np.linspace(t_s, end, max(2, math.ceil((end - t_s) / CHECK_STEP_S) + 1))
+        if float(np.linalg.norm(piece.state(grid)[2], axis=-1).max()) <= limits.max_acceleration:
+            return piece
+        ramp *= 1.1
+    return None
