@@ -131,7 +131,7 @@ class Replanner:
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
         self.hint: np.ndarray | None = None  # (N, K, 3) the best try of a deferred re-plan
         self.laps = Laps()  # where the last solve's wall time went
-        self.later: dict[int, tuple[tuple[str, float, float], ...]] = {}  # plans passed by _later: their windows
+        self.later: dict[int, tuple[tuple[str, float, float], ...]] = {}  # plans passed by Acceptance.later_only: their windows
         self.answers_event = True  # the solve answers an event (not a receding-horizon re-plan)
         if self._workers > 1:
             aside.start(PRELOAD)
