@@ -661,6 +661,8 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     assert delay == pytest.approx(next(d for d in YIELD_DELAYS if abs(d - delay) < 1e-6))
     v = rp.acceptance.check(plan, t_s, plan.arrival)
     assert v.safe and not v.windows
+    assert rp.acceptance.clear_of_motions(plan, t_s, plan.arrival) and not rp.acceptance.clear_of_motions(
+        base, t_s, base.arrival)  # the screen agrees with the judge on both
     t = np.linspace(t_s, plan.arrival, 2001)
     tau = plan.pieces[0].warp(t)[0]
     np.testing.assert_allclose(plan.state(t)[0], base.state(np.minimum(tau, base.arrival))[0], atol=1e-9)

@@ -99,19 +99,19 @@ class Fallback:
         and Zucker 1986): the paths keep every margin to what does not move and to each other,
         and only the timing changes, so that a known motion crossing them passes first; the
         paths are the plan's, so is the game they solve."""
-        limits = self.acceptance.scenario.vehicle
-        if not self.acceptance.check(base, t_s, end_time(base), motions=False).safe:
+        acc = self.acceptance
+        if not acc.dyn.known_motion or not acc.check(base, t_s, end_time(base), motions=False).safe:
             return None  # blocked by what does not move: no timing helps
         for delay in YIELD_DELAYS:
             for factor in YIELD_FACTORS:
-                piece = slow_piece(base, t_s, limits, delay, factor)
+                if deadline is not None and deadline.passed:
+                    return None
+                piece = slow_piece(base, t_s, acc.scenario.vehicle, delay, factor)
                 if piece is None:
                     continue
                 plan = Reference((piece,))
-                if self.acceptance.check(plan, t_s, piece.t1).safe:
+                if acc.clear_of_motions(plan, t_s, piece.t1) and acc.check(plan, t_s, piece.t1).safe:
                     return plan
-                if deadline is not None and deadline.passed:
-                    return None
         return None
 
     def stop(self, base: TeamTrajectory, t_soon: float, t_s: float) -> tuple[Reference, ReplanStatus]:

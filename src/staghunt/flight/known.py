@@ -18,7 +18,7 @@ from staghunt.costs import to_absolute
 from staghunt.flight.link import HoldReason
 from staghunt.flight.onboard import hold_piece
 from staghunt.safety import Margins, Scene, Verdict, judge
-from staghunt.safety.measure import static_clearance
+from staghunt.safety.measure import moving_clearance, static_clearance
 from staghunt.scenario import Scenario
 from staghunt.trajectory.quintic import Piece, Reference
 from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time, row_of
@@ -194,6 +194,17 @@ class Acceptance:
         closing = (sc.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2 + motion_extra
         return judge(scene, np.array([u.radius for u in sc.team]), t, pos, margins or self.margins,
                      [u.name for u in sc.team], motion_margin=closing)
+
+    def clear_of_motions(self, traj: TeamTrajectory, t0: float, t1: float) -> bool:
+        """Whether ``traj`` keeps the known motions' clearance over ``[t0, t1]``, as :meth:`check`
+        asks it (the same samples and margin): a screen for re-timings of paths already
+        judged against everything else (:meth:`Fallback.yield_to`), whose one candidate that
+        passes it is then judged in full."""
+        t = np.linspace(t0, max(t1, t0), max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+        r = np.array([u.radius for u in self.scenario.team])
+        closing = (self.scenario.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2
+        clear, _ = moving_clearance(self.dyn, traj.state(t)[0], t, r)
+        return bool(np.all(clear >= self.margins.clearance + closing))
 
     def stragglers(self, new: TeamTrajectory, base: TeamTrajectory, t_s: float, learn: float) -> list[str]:
         """The commit rule's check (RMADER's, for one planner): a UAV that misses the plan

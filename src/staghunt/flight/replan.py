@@ -99,8 +99,7 @@ class _Attempt:
     azimuth: float
     windows: list[tuple[str, float, float]]
     timing: tuple[Any, ...] = ()
-    later: tuple[tuple[str, float, float], ...] = ()
-    """The plan's conflicts with known motions left to the horizon (:meth:`Acceptance.later_only`)."""
+    later: tuple[tuple[str, float, float], ...] = ()  # conflicts left to the horizon (Acceptance.later_only)
 
 
 def _passed(rest: tuple[_Attempt | None, Any] | None) -> bool:
@@ -131,7 +130,7 @@ class Replanner:
         self._solo = get_engine("numba", threads=1) if self._workers > 1 else engine
         self.hint: np.ndarray | None = None  # (N, K, 3) the best try of a deferred re-plan
         self.laps = Laps()  # where the last solve's wall time went
-        self.later: dict[int, tuple[tuple[str, float, float], ...]] = {}  # plans passed by Acceptance.later_only: their windows
+        self.later: dict[int, tuple[tuple[str, float, float], ...]] = {}  # plans passed by Acceptance.later_only
         self.answers_event = True  # the solve answers an event (not a receding-horizon re-plan)
         if self._workers > 1:
             aside.start(PRELOAD)
@@ -204,16 +203,17 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
-        # known motions in the way of an event's re-plan: a yield to them (Fallback.yield_to: the
-        # current paths, slowed in sync) when it arrives no later than the plan from the moving
-        # state (a detour round a motion's swept window) or there is none; else a deferred stop
-        yielded = self.fallback.yield_to(base, t_s, deadline) if first.windows and fallback and not at_rest else None
-        if yielded is not None and first.plan is not None and first.plan.arrival < yielded.arrival:
-            yielded = None
+        # known motions in the way of an event's re-plan: a yield (Fallback.yield_to, sought until the
+        # plan from rest would end) if it arrives no later than the moving solve's plan; else a deferral
+        yielded = None
+        if first.windows and fallback and not at_rest:
+            yielded = self.fallback.yield_to(base, t_s, Deadline(rest_args[-1]))
+            laps.lap("yield")
+            if yielded is not None and first.plan is not None and first.plan.arrival < yielded.arrival:
+                yielded = None
         if yielded is not None or (first.plan is None and can_defer):
-            laps.lap("fallback")
-            if yielded is None:
-                self.hint = first.out.plan if first.out is not None else None
+            if yielded is None and first.out is not None:  # a deferral: the next solve goes on from here
+                self.hint = first.out.plan
             return Solved(yielded, ReplanStatus.DEFERRED if yielded is None else ReplanStatus.YIELD, spent, tries,
                           problems=tuple(first.problems[:5]), windows=tuple(sorted(set(first.windows))))
         chosen, status, why = first, ReplanStatus.REPLANNED, ()
