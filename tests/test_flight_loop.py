@@ -676,6 +676,7 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     out = rp.solve(start, lambda: t_s, 1, windows)
     assert out.status is ReplanStatus.YIELD and not out.status.stopped and not out.status.solved
     assert out.plan.arrival == pytest.approx(plan.arrival) and rp.acceptance.check(out.plan, t_s, out.plan.arrival).safe
+    assert not rp.acceptance.stragglers(out.plan, base, t_s, rp.learn_s)  # the commit rule holds for it too
     monkeypatch.setattr(type(rp.fallback), "yield_to", lambda *a, **k: None)
     rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
     detour = rp.solve(start, lambda: t_s, 1, windows)

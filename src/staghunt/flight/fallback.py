@@ -90,15 +90,18 @@ class Fallback:
         soon = t_soon()
         return self.stop(base, soon, max(t_s, soon))
 
-    def yield_to(self, base: TeamTrajectory, t_s: float, deadline: Deadline | None = None) -> Reference | None:
+    def yield_to(self, base: TeamTrajectory, t_s: float, deadline: Deadline | None = None,
+                 learn: float | None = None) -> Reference | None:
         """The team's current paths flown from ``t_s`` on, slowed in sync to one of
         :data:`YIELD_FACTORS` of their pace and sped up again
         (:func:`~staghunt.trajectory.quintic.slow_piece`) so as to arrive the first of
         :data:`YIELD_DELAYS` later that passes the acceptance to the end (sought until
-        ``deadline``); ``None`` if none does. Path-velocity decomposition (Kant
+        ``deadline``), and the commit rule's check if ``learn`` is given (a UAV that misses the
+        yield flies on at its pace for ``learn`` seconds: :meth:`Acceptance.stragglers`);
+        ``None`` if none does. Path-velocity decomposition (Kant
         and Zucker 1986): the paths keep every margin to what does not move and to each other,
         and only the timing changes, so that a known motion crossing them passes first; the
-        paths are the plan's, so is the game they solve."""
+        paths, and so the game's costs, are the plan's."""
         acc = self.acceptance
         if not acc.dyn.known_motion or not acc.check(base, t_s, end_time(base), motions=False).safe:
             return None  # blocked by what does not move: no timing helps
@@ -110,7 +113,8 @@ class Fallback:
                 if piece is None:
                     continue
                 plan = Reference((piece,))
-                if acc.clear_of_motions(plan, t_s, piece.t1) and acc.check(plan, t_s, piece.t1).safe:
+                if (acc.clear_of_motions(plan, t_s, piece.t1) and acc.check(plan, t_s, piece.t1).safe
+                        and (learn is None or not acc.stragglers(plan, base, t_s, learn))):
                     return plan
         return None
 

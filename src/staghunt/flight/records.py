@@ -34,9 +34,9 @@ class ReplanStatus(str, Enum):
     motion's way; ``KEPT`` nothing: the current plan stays (a receding-horizon re-plan that
     found nothing better, or no plan or a late one while the current one stays safe);
     ``DEFERRED`` no plan yet from the moving state, but a stop decided at the next re-plan
-    still passes: the current plan stays and the station solves again at once; ``YIELD`` no
-    plan from the moving state, and the current plan's paths flown later, slowed in sync, let
-    the known motions in its way pass first."""
+    still passes: the current plan stays and the station solves again at once; ``YIELD`` the
+    current plan's paths flown on, slowed in sync, so that the known motions in their way pass
+    first (the moving state had no plan, or only one arriving later)."""
 
     REPLANNED = "replanned"
     STOP_REPLANNED = "stop, replanned"

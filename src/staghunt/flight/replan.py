@@ -203,11 +203,11 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
-        # known motions in the way of an event's re-plan: a yield (Fallback.yield_to, sought until the
-        # plan from rest would end) if it arrives no later than the moving solve's plan; else a deferral
+        # known motions in the way: a yield (until the plan from rest would end) if no later than the moving plan
         yielded = None
         if first.windows and fallback and not at_rest:
-            yielded = self.fallback.yield_to(base, t_s, Deadline(rest_args[-1]))
+            yielded = self.fallback.yield_to(base, t_s, Deadline(rest_args[-1]),
+                                             self.learn_s if cfg.straggler_check else None)
             laps.lap("yield")
             if yielded is not None and first.plan is not None and first.plan.arrival < yielded.arrival:
                 yielded = None
