@@ -681,3 +681,29 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     rp = Replanner(replace(sc, dynamics=dyn), dyn, config, get_engine("numba", threads=1), np.random.default_rng(0))
     detour = rp.solve(start, lambda: t_s, 1, windows)
     assert detour.status is ReplanStatus.REPLANNED and detour.plan.arrival > out.plan.arrival + 1.0
+
+
+def test_a_yield_of_a_plan_that_ends_short_of_the_goals_counts_as_a_failed_replan():
+    """A hovering team (stopped short of its goals) whose retry sends a yield flies the same
+    paths slowed, so it still ends short of the goals: the station goes on retrying from there
+    (benchmarks/replan.py's scenario-2 episode 29 on the worse link yielded its sidestep and
+    hovered to the end); a yield of a plan that reaches the goals ends the stop."""
+    from staghunt.engine import get_engine
+    from staghunt.flight.replan import Replanner
+    from staghunt.flight.station import GroundStation, Trigger
+
+    sc, ref, hover, _ = _hovering_in_a_trucks_way()
+    dyn = Dynamics()  # nothing else triggers a re-plan
+    rp = Replanner(sc, dyn, FIXED, get_engine("numpy"), np.random.default_rng(0))
+    station = GroundStation(rp, dyn, FIXED, ref, 0.01, WORST)
+    assert station._short()
+    station.stopped_at, station.stops = 3.0, 1
+    station._after(4.0, Trigger(Cause.RETRY, "retry after stop"), ReplanStatus.YIELD)
+    assert station.stopped_at == 3.0 and station.stops == 1  # still stopped: the retries go on
+    assert station._trigger(3.0 + FIXED.retry_interval * 2, False).cause is Cause.RETRY
+    _, base, _, _ = _team_across_the_small_site()
+    station = GroundStation(rp, dyn, FIXED, base, 0.01, WORST)
+    assert not station._short()
+    station.stopped_at, station.stops = 3.0, 1
+    station._after(4.0, Trigger(Cause.PREDICTED, "predicted conflict with truck"), ReplanStatus.YIELD)
+    assert station.stopped_at == -1.0

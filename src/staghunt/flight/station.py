@@ -361,10 +361,12 @@ class GroundStation:
         if trigger.cause is not Cause.RECEDING:
             self.deferred = 0
         # a re-plan that kept the current plan fails too when that plan ends short of the goals
-        # (a stop or a sidestep, flown on since no stop replaced it): the team retries from there
+        # (a stop or a sidestep, flown on since no stop replaced it): the team retries from there;
+        # so does a yield of such a plan (the same paths, slowed: they end where it ends)
         failed = status in (ReplanStatus.STOP, ReplanStatus.EMERGENCY_STOP) or (
             status is ReplanStatus.KEPT and (trigger.cause is Cause.RETRY
-                                             or (trigger.cause is not Cause.RECEDING and self._short())))
+                                             or (trigger.cause is not Cause.RECEDING and self._short()))) or (
+            status is ReplanStatus.YIELD and self._short())
         if status is ReplanStatus.STOP_REPLANNED:
             self.stops += 1
         if status is ReplanStatus.SIDESTEP or (status is ReplanStatus.KEPT and not failed):
