@@ -188,23 +188,27 @@ class Acceptance:
         motions; ``motions=False``: the fixed and sensed obstacles, team-mates, ground and
         ceiling only)."""
         sc = self.scenario
-        t = np.linspace(t0, max(t1, t0), max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+        t = _samples(t0, t1)
         pos = traj.state(t)[0]
         scene = Scene.fixed(sc.world, *(known or self.known).shapes(), motions=self.dyn if motions else None)
-        closing = (sc.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2 + motion_extra
         return judge(scene, np.array([u.radius for u in sc.team]), t, pos, margins or self.margins,
-                     [u.name for u in sc.team], motion_margin=closing)
+                     [u.name for u in sc.team], motion_margin=self.closing + motion_extra)
+
+    @property
+    def closing(self) -> float:
+        """Metres a UAV and a known motion can close between two samples (added to the
+        motions' required clearance)."""
+        return (self.scenario.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2
 
     def clear_of_motions(self, traj: TeamTrajectory, t0: float, t1: float) -> bool:
         """Whether ``traj`` keeps the known motions' clearance over ``[t0, t1]``, as :meth:`check`
         asks it (the same samples and margin): a screen for re-timings of paths already
         judged against everything else (:meth:`Fallback.yield_to`), whose one candidate that
         passes it is then judged in full."""
-        t = np.linspace(t0, max(t1, t0), max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
+        t = _samples(t0, t1)
         r = np.array([u.radius for u in self.scenario.team])
-        closing = (self.scenario.vehicle.max_speed + max_motion_speed(self.dyn)) * CHECK_STEP_S / 2
         clear, _ = moving_clearance(self.dyn, traj.state(t)[0], t, r)
-        return bool(np.all(clear >= self.margins.clearance + closing))
+        return bool(np.all(clear >= self.margins.clearance + self.closing))
 
     def stragglers(self, new: TeamTrajectory, base: TeamTrajectory, t_s: float, learn: float) -> list[str]:
         """The commit rule's check (RMADER's, for one planner): a UAV that misses the plan
@@ -271,6 +275,11 @@ def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, 
     keep_c = tuple(c for c in cyl if np.all(static_clearance((c,), (), ends[:, None], r) >= need))
     keep_p = tuple(p for p in prm if np.all(static_clearance((), (p,), ends[:, None], r) >= need))
     return keep_c, keep_p
+
+
+def _samples(t0: float, t1: float) -> np.ndarray:
+    """The acceptance's instants over ``[t0, t1]``, every :data:`CHECK_STEP_S` at most."""
+    return np.linspace(t0, max(t1, t0), max(2, math.ceil((t1 - t0) / CHECK_STEP_S) + 1))
 
 
 def game_problem(scenario: Scenario, dyn: Dynamics, accepted: Margins, starts: np.ndarray,

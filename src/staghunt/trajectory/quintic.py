@@ -378,6 +378,14 @@ def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray
     return sorted(found, key=lambda p: p.t1)
 
 
+def _planned(base: TeamTrajectory, t_s: float, here: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The knots and planned points a warp of ``base`` from ``t_s`` carries: a piece's own, or
+    (any other team trajectory) ``t_s`` and the positions ``here`` ``(N, T, 3)`` there."""
+    if isinstance(base, Piece):
+        return base.knots, base.points
+    return np.array([t_s]), here[:, :1]
+
+
 def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bool = False) -> Piece:
     """A synchronised stop starting at ``t_s``: ``ref`` (of a :class:`Reference`, the piece
     flown at ``t_s``) slowed down to rest with one common time warp (module docstring;
@@ -399,10 +407,7 @@ def stop_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, brake: bo
         # (a stop of a stop of ... wraps every earlier one, and evaluating it recurses as deep)
         base = Still(s[0][:, 0].copy(), t_s)
     T = max(0.5, peak * v / (MARGIN * limits.max_acceleration))
-    if isinstance(base, Piece):
-        knots, points = base.knots, base.points
-    else:
-        knots, points = np.array([t_s]), s[0][:, :1]
+    knots, points = _planned(base, t_s, s[0])
     for _ in range(30):
         piece = Piece("stop", t_s, t_s + T, knots, points, base=base, duration=T, brake=brake)
         grid = np.linspace(t_s, t_s + T, max(2, math.ceil(T / CHECK_STEP_S) + 1))
@@ -426,10 +431,7 @@ def slow_piece(ref: TeamTrajectory, t_s: float, limits: VehicleLimits, delay: fl
     s = base.state(t)
     v = float(np.linalg.norm(s[1], axis=-1).max())
     ramp = max(0.5, 1.5 * (1.0 - factor) * v / (MARGIN * limits.max_acceleration))
-    if isinstance(base, Piece):
-        knots, points = base.knots, base.points
-    else:
-        knots, points = np.array([t_s]), s[0][:, :1]
+    knots, points = _planned(base, t_s, s[0])
     while ramp <= span:
         piece = Piece("slow", t_s, last + delay, knots, points, base=base, duration=ramp, slow=(span - ramp, factor))
         end = t_s + ramp + span  # the warp's end; the base then goes on `delay` behind its time
