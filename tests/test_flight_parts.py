@@ -560,3 +560,32 @@ def test_a_receding_replan_gets_the_repair_budget_while_the_plan_flown_is_not_an
     station.job = None
     station._replan(4.0, Trigger(Cause.SENSED, "sensed pop-up"))  # events keep the flight's budget
     assert scales == [3, 1, 1]
+
+
+def test_the_lead_in_is_the_stopping_distance_at_the_timings_braking_rate_where_there_is_room():
+    """A re-plan from a moving state starts where each UAV has stopped at the timing's braking
+    rate (``SCHEDULE_SHARE`` of ``max_acceleration``: the schedule can then turn sharply from the
+    switch speed); a UAV whose longer lead-in would come within the game's clearance of a known
+    obstacle takes the stopping distance at ``max_acceleration``; if even that cuts an obstacle,
+    or the team is nearly at rest, the plan starts at the switch state."""
+    from staghunt.flight.known import LEAD_IN_MIN_SPEED, Acceptance, KnownWorld, Start, game_margins, lead_in
+    from staghunt.trajectory.quintic import SCHEDULE_SHARE
+
+    sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
+    known = KnownWorld(sc)
+    acc = Acceptance(sc, known, Dynamics(), 0.25)
+    pos = np.array([[10.0, 15.0, 12.0], [10.0, 23.0, 12.0]])
+    vel = np.array([[4.0, 0.0, 0.0], [4.0, 0.0, 0.0]])
+    start = Start(0.0, Still(pos, 0.0), pos, vel, np.zeros((2, 3)))
+    a = sc.vehicle.max_acceleration
+    far, near = 16.0 / (2.0 * SCHEDULE_SHARE * a), 16.0 / (2.0 * a)
+    np.testing.assert_allclose(lead_in(acc, start), pos + [[far, 0.0, 0.0]] * 2)
+    # a block ahead of UAV2: its long lead-in would end at half the game's clearance from it
+    need, r = game_margins(acc.margins)[0], sc.team[1].radius
+    assert 0.5 * need + (far - near) >= acc.margins.clearance  # the short one stays clear of it
+    known.sensed["block"] = Cylinder(10.0 + far + r + 1.0 + 0.5 * need, 23.0, 1.0, "block")
+    np.testing.assert_allclose(lead_in(acc, start), pos + [[far, 0.0, 0.0], [near, 0.0, 0.0]])
+    known.sensed["block"] = Cylinder(10.0 + near, 23.0, 1.0, "block")  # in the way of the short one too
+    assert lead_in(acc, start) is None
+    slow = Start(0.0, start.base, pos, vel * 0.9 * LEAD_IN_MIN_SPEED / 4.0, np.zeros((2, 3)))
+    assert lead_in(acc, slow) is None

@@ -20,7 +20,7 @@ from staghunt.flight.onboard import hold_piece
 from staghunt.safety import Margins, Scene, Verdict, judge
 from staghunt.safety.measure import moving_clearance, static_clearance
 from staghunt.scenario import Scenario
-from staghunt.trajectory.quintic import Piece, Reference
+from staghunt.trajectory.quintic import SCHEDULE_SHARE, Piece, Reference
 from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time, row_of
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics, max_motion_speed
@@ -29,6 +29,8 @@ CHECK_STEP_S = 0.05
 """Time step of the acceptance's samples (s)."""
 STRAGGLER_STEP_S = 0.1
 """Time step of the commit rule's check (:meth:`Acceptance.stragglers`; UAVs apart by metres)."""
+LEAD_IN_MIN_SPEED = 0.5
+"""m/s: below this the switch state counts as at rest for the lead-in (:func:`lead_in`)."""
 CURVE_SLACK = 0.2
 """Metres a re-plan's game keeps beyond the clearance its acceptance asks: the timed curve
 leaves the planned polyline by up to about 0.15 m between waypoints (3 m sub-legs), and a best
@@ -161,6 +163,48 @@ class Start:
         then = base.state(times)[:, np.arange(len(t_m)), at.ravel()]  # (4, N, 3): UAV n at its t_m
         off_p, off_v = pos - then[0], vel - then[1]
         return cls(t_s, base, s[0] + off_p, s[1] + off_v, s[2]), float(np.linalg.norm(off_p, axis=-1).max())
+
+
+def lead_in(acceptance: "Acceptance", start: Start) -> np.ndarray | None:
+    """``(N, 3)`` absolute lead-in points of a re-plan from a moving ``start``, where the new plan
+    starts: each UAV goes on along its velocity for its stopping distance at the timing's braking
+    rate (``|v|^2 / 2 a``, ``a`` = ``max_acceleration`` x
+    :data:`~staghunt.trajectory.quintic.SCHEDULE_SHARE`), so that the timing can take a sharp
+    first turn from the switch speed. A UAV whose lead-in would come closer than the game's
+    clearance (:func:`game_margins`) to a known obstacle, or leave the site, goes on for its
+    stopping distance at ``max_acceleration`` only. ``None`` when the team is nearly at rest
+    (:data:`LEAD_IN_MIN_SPEED`), or such a short lead-in leaves the site or comes closer than
+    the accepted clearance to a known obstacle: the plan then starts at the switch state.
+
+    At ``max_acceleration`` for every UAV (before), the schedule's backward pass slowed the start
+    below the switch speed for a sharp first turn, the spline overshot the lead-in's end and
+    came back, and stretching the schedule made it worse: in 39 of 100 episodes a UAV flew 2 m
+    or more backwards (benchmarks/JOURNAL.md, "Closed loop: the lead-in at the timing's braking
+    rate")."""
+    speed = np.linalg.norm(start.vel, axis=-1)
+    if speed.max() < LEAD_IN_MIN_SPEED:
+        return None
+    ahead = start.vel / np.maximum(speed, 1e-9)[:, None]
+    a_max = acceptance.scenario.vehicle.max_acceleration
+    short = start.pos + ahead * (speed**2 / (2.0 * a_max))[:, None]
+    inside, clear = _lead_room(acceptance, start.pos, short)
+    if not inside.all() or np.any(clear < acceptance.margins.clearance):
+        return None
+    long = start.pos + ahead * (speed**2 / (2.0 * SCHEDULE_SHARE * a_max))[:, None]
+    inside, clear = _lead_room(acceptance, start.pos, long)
+    roomy = inside & (clear >= game_margins(acceptance.margins)[0])
+    return np.where(roomy[:, None], long, short)
+
+
+def _lead_room(acceptance: "Acceptance", pos: np.ndarray, lead: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(N,)`` each: whether ``lead`` ``(N, 3)`` lies in the site, and the least clearance to
+    the known obstacles along the straight lead-ins from ``pos`` ``(N, 3)``."""
+    sc = acceptance.scenario
+    xyh = to_xyh(sc, lead)
+    inside = np.all((xyh >= np.asarray(sc.world.bounds.lower)) & (xyh <= np.asarray(sc.world.bounds.upper)), axis=-1)
+    along = pos[:, None] + (lead - pos)[:, None] * np.linspace(0.0, 1.0, 9)[None, :, None]
+    r = np.array([u.radius for u in sc.team])
+    return inside, static_clearance(*acceptance.known.shapes(), along, r).min(axis=1)
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ in, carried to ``t_s`` (:meth:`Start.measured`). It
 
 1. builds the problem the team knows: the goals (or, for a receding-horizon re-plan, where the
    current plan is ``horizon`` seconds on), the switch positions as starts (moving: their
-   lead-in points, each UAV's stopping distance ahead along its velocity), the static and
+   lead-in points, each UAV's stopping distance at the timing's braking rate ahead along its
+   velocity), the static and
    sensed obstacles and the swept volumes of the known motions over the predicted conflicts'
    windows, with the margins grown for the tracking allowance (:func:`~staghunt.flight.known.game_problem`);
 2. warm-starts the game from the current plan, pushed clear of a new obstacle that cuts it, and runs
@@ -42,10 +43,9 @@ from staghunt.engine import Engine, get_engine, side_by_side
 from staghunt.flight import aside
 from staghunt.flight.config import FlyConfig
 from staghunt.flight.fallback import Fallback, stopping
-from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_problem, route_beyond, to_xyh,
-                                   warm_plan)
+from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_problem, lead_in, route_beyond,
+                                   to_xyh, warm_plan)
 from staghunt.flight.records import Laps, ReplanStatus, Solved
-from staghunt.safety.measure import static_clearance
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
 from staghunt.trajectory.quintic import Reference, timings
@@ -59,8 +59,6 @@ front of an obstacle cannot leave it that way."""
 MAX_STRETCH = 2.0
 """A plan from a moving switch state that must be slowed more than this to meet the limits
 (a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
-LEAD_IN_MIN_SPEED = 0.5
-"""m/s: below this the switch state counts as at rest for the lead-in (:meth:`Replanner._lead_in`)."""
 GAME_SHARE = 0.4
 """Share of the deadline the game's rounds may take; the rest is for timing, acceptance and
 the certificate."""
@@ -166,7 +164,7 @@ class Replanner:
             warm = self.hint
         self.hint = None
         at_rest = stopping(base, t_s)
-        lead = None if at_rest else self._lead_in(start)
+        lead = None if at_rest else lead_in(self.acceptance, start)
 
         def moving(engine: Engine, rest_passes: Callable[[], bool] | None = None) -> _Attempt:
             return self._attempts(start, windows, warm, settings, cfg.attempts, MAX_STRETCH,
@@ -364,27 +362,6 @@ class Replanner:
         assert first is not None
         return None, *first
 
-    def _lead_in(self, start: Start) -> np.ndarray | None:
-        """``(N, 3)`` absolute lead-in points of a re-plan from a moving state: each UAV goes on
-        along its velocity for the distance it needs to stop at ``max_acceleration``
-        (``|v|^2 / 2 a``), where the new plan starts. ``None`` when the team is nearly at rest,
-        or a lead-in leaves the site or comes closer than the hard clearance to an obstacle
-        known (the plan then starts at the switch state)."""
-        v = start.vel
-        speed = np.linalg.norm(v, axis=-1)
-        if speed.max() < LEAD_IN_MIN_SPEED:
-            return None
-        d = speed**2 / (2.0 * self.scenario.vehicle.max_acceleration)
-        lead = start.pos + v / np.maximum(speed, 1e-9)[:, None] * d[:, None]
-        b = self.scenario.world.bounds
-        xyh = to_xyh(self.scenario, lead)
-        if np.any(xyh < np.asarray(b.lower)) or np.any(xyh > np.asarray(b.upper)):
-            return None
-        along = start.pos[:, None] + (lead - start.pos)[:, None] * np.linspace(0.0, 1.0, 9)[None, :, None]
-        r = np.array([u.radius for u in self.scenario.team])
-        clear = static_clearance(*self.known.shapes(), along, r)  # (N, 9)
-        return None if np.any(clear < self.acceptance.margins.clearance) else lead
-
     def _attempts(self, start: Start, windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
                   tries: int, max_stretch: float, azimuth: float, rng: np.random.Generator, engine: Engine,
                   deadline: Deadline, lead: np.ndarray | None = None, cancel: Any = None,
@@ -393,7 +370,7 @@ class Replanner:
         """Solve from ``start`` up to ``tries`` times (each new conflict with a known motion adds
         its window to ``windows``, which this call owns), headings within ``azimuth`` of the
         goal direction, drawing from ``rng``, searching with ``engine`` until ``deadline``;
-        ``lead``: lead-in points (:meth:`_lead_in`); ``until``: a receding horizon's end (the
+        ``lead``: lead-in points (:func:`~staghunt.flight.known.lead_in`); ``until``: a receding horizon's end (the
         problem's goals are where ``start.base`` is then, and the rest of it is kept);
         ``cancel``: an event that stops the solve; ``stop_retrying()``: asked when a solve
         ends infeasible; if true (another plan passes), it is not tried again."""
