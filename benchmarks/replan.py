@@ -62,6 +62,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
     import warnings
 
     warnings.simplefilter("ignore")
+    from staghunt.costs import to_absolute
     from staghunt.flight import Cause, FlyConfig, fly
     from staghunt.flight.onboard import REFLEX_PERIOD
     from staghunt.world.dynamic import Link
@@ -96,6 +97,7 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
                      "problems": list(x.problems[:2]) if x.stopped else [],
                      "later": [[w[0], round(w[1], 2)] for w in x.later]}
                     for x in r.replans],
+        "backward_m": backward(r.reference, to_absolute(r.scenario.world.terrain, r.scenario.goals()[:, None])[:, 0]),
         "tracking_rms_m": float(np.sqrt(np.mean(r.tracking_rms ** 2))),
         "tracking_max_m": float(r.tracking_max.max()),
         "extra_time_s": None if not math.isfinite(r.extra_time) else float(r.extra_time),
@@ -112,6 +114,19 @@ def run_episode(job: dict[str, Any]) -> dict[str, Any]:
             1.0 / r.dynamics.sensing.rate + config.deadline_for(r.scenario.n_uavs) + 2 * config.link.delay)
         if popup else None,
     }
+
+
+BACKWARD_M = 2.0
+"""An episode flew backwards when a UAV's reference went this far (m) away from its goal after
+having been nearer (:func:`backward`)."""
+
+
+def backward(reference: np.ndarray, goals: np.ndarray) -> float:
+    """The most any UAV's reference ``(N, T, 3)`` went away from its goal ``(N, 3)`` after having
+    been nearer (m): a timing that overshoots a lead-in and comes back shows here; a detour round
+    an obstacle ahead barely moves away from a goal beyond it."""
+    d = np.linalg.norm(reference - goals[:, None], axis=-1)  # (N, T)
+    return float((d - np.minimum.accumulate(d, axis=1)).max())
 
 
 def _closing(times: np.ndarray, actual: np.ndarray, velocity: np.ndarray, popup: dict[str, Any],
@@ -258,6 +273,8 @@ def summarise(rows: list[dict[str, Any]]) -> dict[str, Any]:
         **_lead_drift(ok),
         **{f"{k}_breaches": sum(k in r["breaches"] for r in ok) for k in ("clearance", "separation", "ground", "ceiling")},
         "arrived_without_stop": len(clean), "episodes_with_stop": sum(r["stops"] > 0 for r in ok),
+        # episodes where a UAV flew backwards (BACKWARD_M or more away from its goal after being nearer)
+        "episodes_backward": sum(r.get("backward_m", 0.0) >= BACKWARD_M for r in ok) if ok and "backward_m" in ok[0] else None,
         "episodes_with_hold": sum(r["holds"] > 0 for r in ok),
         "least_clearance_m": min((r["min_clearance_m"] for r in ok), default=None),
         "median_least_clearance_m": float(np.median([r["min_clearance_m"] for r in ok])) if ok else None,

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
-from replan import _lead_drift, popup_reach, popup_swerve, stop_causes  # noqa: E402
+from replan import _lead_drift, backward, popup_reach, popup_swerve, stop_causes  # noqa: E402
 
 NOTICE = 0.2  # a sensor period, a reflex check and the reflex latency (s)
 
@@ -119,3 +119,16 @@ def test_the_lead_drift_counts_popups_met_inside_their_drawn_lead():
             {"popup_lead_s": 4.0, "popup_flown_lead_s": 3.0}, {"popup_lead_s": 5.0, "popup_flown_lead_s": None}]
     assert _lead_drift(rows) == {"popup_lead_s_median": 3.0, "popup_lead_drift_s_median": pytest.approx(-0.5),
                                  "popups_met_inside_lead": 2}
+
+
+def test_backward_is_how_far_a_uav_went_away_from_its_goal_after_being_nearer() -> None:
+    """UAV1 flies 6 m towards its goal, 3 m back, then on to it: 3 m backwards; UAV2 goes
+    straight to its goal: none."""
+    x = np.concatenate([np.linspace(0.0, 6.0, 7), np.linspace(5.0, 3.0, 3), np.linspace(4.0, 10.0, 7)])
+    ref = np.zeros((2, x.size, 3))
+    ref[0, :, 0] = x
+    ref[1, :, 0] = np.linspace(0.0, 10.0, x.size)
+    ref[1, :, 1] = 5.0
+    goals = np.array([[10.0, 0.0, 0.0], [10.0, 5.0, 0.0]])
+    assert backward(ref, goals) == pytest.approx(3.0)
+    assert backward(ref[1:], goals[1:]) == 0.0
