@@ -79,6 +79,7 @@ ALLOW: dict[str, list[str]] = {
         "300 ms delay, 30 ms jitter, 5 % loss",       # the worse link's settings
         "1 s for 8*",               # issue 38's latency target for 8 UAVs
         "0.2 s for 3 UAVs, too short",  # the default deadline (a setting)
+        "fixed latency of 0.15 s (",  # the fixed-latency runs' setting
         "radius 2.5 m",             # replan.py's episode generator
         "2-5 s later",
         "2-5 s ahead",

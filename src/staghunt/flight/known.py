@@ -178,8 +178,8 @@ def lead_in(acceptance: "Acceptance", start: Start) -> np.ndarray | None:
 
     At ``max_acceleration`` for every UAV (before), the schedule's backward pass slowed the start
     below the switch speed for a sharp first turn, the spline overshot the lead-in's end and
-    came back, and stretching the schedule made it worse: in 39 of 100 episodes a UAV flew 2 m
-    or more backwards (benchmarks/JOURNAL.md, "Closed loop: the lead-in at the timing's braking
+    came back, and stretching the schedule made it worse: in 39 of 100 scenario-2 episodes (fixed
+    latency) a UAV flew 2 m or more backwards (benchmarks/JOURNAL.md, "Closed loop: the lead-in at the timing's braking
     rate")."""
     speed = np.linalg.norm(start.vel, axis=-1)
     if speed.max() < LEAD_IN_MIN_SPEED:

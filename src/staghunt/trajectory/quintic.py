@@ -54,7 +54,7 @@ MARGIN = 0.98
 SCHEDULE_SHARE = 0.5
 """Share of ``max_acceleration`` :func:`knot_times` plans with: its turns' lateral acceleration
 and its speed changes (the rest is the spline's, between the knots). A re-plan's lead-in is the
-stopping distance at this share (:meth:`staghunt.flight.replan.Replanner._lead_in`)."""
+stopping distance at this share (:func:`staghunt.flight.known.lead_in`)."""
 CACHED = 8
 """Answers of :meth:`Piece.state` kept per piece."""
 REST_TOL = 1e-9
@@ -224,8 +224,8 @@ def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np
     The team's speed ``u`` at each point is that of its fastest UAV on the adjacent leg. It is
     capped by the cruise speed and, at a turn, by ``sqrt(a_t rho)`` with ``rho`` the turn's
     radius (the mean adjacent leg length over the turning angle, for every UAV) and
-    ``a_t = max_acceleration`` x :data:`SCHEDULE_SHARE`; a forward and a backward pass then keep the speed changes
-    within ``a_t`` (from ``v0`` at the start to rest at the end); a leg takes
+    ``a_t = max_acceleration`` x :data:`SCHEDULE_SHARE`; a forward and a backward pass then keep
+    the speed changes within ``a_t`` (from ``v0`` at the start to rest at the end); a leg takes
     ``2 L / (u_k + u_{k+1})`` (its longest UAV leg ``L``)."""
     seg = np.diff(points, axis=1)  # (N, M - 1, 3)
     length = np.linalg.norm(seg, axis=-1)  # (N, M - 1)
