@@ -331,3 +331,34 @@ def test_schema_events_command(capsys):
     assert set(schema["properties"]) == {"events", "moving", "jibs", "sensing", "link"}
 
 
+
+
+def test_the_smooth_curve_rounds_corners_the_dense_one_turns_at():
+    """A re-plan times its paths twice (:func:`timings`): through sub-legs of at most 3 m, which
+    keep within 0.3 m of the polyline and slow down at every corner, and through the planned
+    points alone (``SMOOTH_SPACING``), which swings wide of the corners. On a zigzag of 40-degree
+    turns every 8 m, flown from cruise speed, the smooth curve is sooner; both pass through the
+    planned points together, start at the switch state and stay within the limits."""
+    from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, timings
+
+    x = np.arange(0.0, 81.0, 8.0)
+    y = np.where(np.arange(x.size) % 2 == 1, 8.0 * math.tan(math.radians(20.0)), 0.0)
+    a = np.column_stack([x, y, np.full(x.size, 12.0)])
+    pts = np.stack([a, a + [0.0, 8.0, 0.0]])  # (2, 11, 3)
+    v0 = np.tile([4.0, 0.0, 0.0], (2, 1))
+    pieces = timings(pts, 3.0, LIMITS, v0, np.zeros((2, 3)), max_stretch=2.0,
+                     spacings=(DENSE_SPACING, SMOOTH_SPACING))
+    assert {p.spacing for p in pieces} == {DENSE_SPACING, SMOOTH_SPACING}
+    dense = min((p for p in pieces if p.spacing == DENSE_SPACING), key=lambda p: p.t1)
+    smooth = min((p for p in pieces if p.spacing == SMOOTH_SPACING), key=lambda p: p.t1)
+    assert pieces[0] is smooth and smooth.t1 < 0.9 * dense.t1
+    for p in (dense, smooth):
+        t = np.linspace(p.t0, p.t1, 4000)
+        s = p.state(t)
+        assert np.linalg.norm(s[1], axis=-1).max() <= LIMITS.max_speed
+        assert np.linalg.norm(s[2], axis=-1).max() <= LIMITS.max_acceleration * 1.001
+        np.testing.assert_allclose(s[1][:, 0], v0, atol=1e-6)
+        np.testing.assert_allclose(s[0][:, -1], pts[:, -1], atol=1e-6)
+    # the smooth curve goes through every planned point at one time for the team
+    at = smooth.state(smooth.knots)[0]
+    np.testing.assert_allclose(at, pts, atol=1e-6)

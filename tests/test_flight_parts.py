@@ -569,7 +569,7 @@ def test_the_lead_in_is_the_stopping_distance_at_the_timings_braking_rate_where_
     obstacle takes the stopping distance at ``max_acceleration``; if even that cuts an obstacle,
     or the team is nearly at rest, the plan starts at the switch state."""
     from staghunt.flight.known import LEAD_IN_MIN_SPEED, Acceptance, KnownWorld, Start, game_margins, lead_in
-    from staghunt.trajectory.quintic import SCHEDULE_SHARE
+    from staghunt.trajectory.schedule import SCHEDULE_SHARE
 
     sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
     known = KnownWorld(sc)
@@ -589,3 +589,24 @@ def test_the_lead_in_is_the_stopping_distance_at_the_timings_braking_rate_where_
     assert lead_in(acc, start) is None
     slow = Start(0.0, start.base, pos, vel * 0.9 * LEAD_IN_MIN_SPEED / 4.0, np.zeros((2, 3)))
     assert lead_in(acc, slow) is None
+
+
+def test_a_smooth_curve_is_accepted_at_the_full_margins_a_dense_one_at_the_games_less_its_slack():
+    """A re-plan's dense curve keeps within 0.15 m of the game's polyline, so it is judged at the
+    game's clearance less ``CURVE_SLACK`` (the clearance a UAV already within the margins has,
+    less the slack, when the game granted it that); the smooth curve rounds the polyline's
+    corners by more, so it must keep the acceptance's full margins (required plus the tracking
+    allowance) whatever the game granted."""
+    from staghunt.flight.known import CURVE_SLACK, Acceptance, KnownWorld, game_margins
+
+    sc = load_scenario(str(Path(__file__).parent / "data" / "flight_small.toml"))
+    acc = Acceptance(sc, KnownWorld(sc), Dynamics(), 0.25)
+    full = acc.margins.clearance
+    assert full == pytest.approx(sc.costs.min_clearance + 0.25)  # 1.25 m
+    game = game_margins(acc.margins)[0]  # 1.45 m
+    assert acc.problem_margins(game).clearance == pytest.approx(full)
+    assert acc.problem_margins(game, smooth=True).clearance == pytest.approx(full)
+    assert acc.problem_margins(1.1).clearance == pytest.approx(1.1 - CURVE_SLACK)  # granted to a UAV within them
+    assert acc.problem_margins(1.1, smooth=True).clearance == pytest.approx(full)
+    assert acc.problem_margins(3.0, smooth=True).clearance == pytest.approx(3.0 - CURVE_SLACK)
+    assert acc.problem_margins(1.1, smooth=True).separation == acc.margins.separation

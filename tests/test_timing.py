@@ -120,7 +120,8 @@ def test_each_uav_at_its_own_pace_when_the_teams_legs_differ():
     as slow as the sharper); each UAV at its own pace (``own=True``, the sooner of
     :func:`timings`) arrives when the slower
     alone would, together, within the limits, from the start to the goals."""
-    from staghunt.trajectory.quintic import DENSE_SPACING, knot_times, split_legs as dense_legs, timed_path, timings
+    from staghunt.trajectory.quintic import DENSE_SPACING, split_legs as dense_legs, timed_path, timings
+    from staghunt.trajectory.schedule import knot_times
 
     lim = VehicleLimits()
     a = np.array([[0.0, 0.0, 10.0], [30.0, 0.0, 10.0], [30.0, 2.0, 10.0]])
@@ -148,7 +149,8 @@ def test_a_uav_that_waits_while_its_team_mate_moves_does_not_slow_the_team_to_a_
     known motion made such a plan: benchmarks/replan.py, scenario-2 episode 12, timed to 418 s
     for 150 m routes). Its zero-length legs have no direction, hence no turn: the team's common
     schedule is not capped at a crawl there, and stays within the limits."""
-    from staghunt.trajectory.quintic import DENSE_SPACING, knot_times, split_legs as dense_legs, timed_path
+    from staghunt.trajectory.quintic import DENSE_SPACING, split_legs as dense_legs, timed_path
+    from staghunt.trajectory.schedule import knot_times
 
     lim = VehicleLimits()
     a = np.array([[0.0, 0.0, 10.0], [30.0, 0.0, 10.0], [60.0, 0.0, 10.0]])

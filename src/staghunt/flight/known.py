@@ -20,7 +20,8 @@ from staghunt.flight.onboard import hold_piece
 from staghunt.safety import Margins, Scene, Verdict, judge
 from staghunt.safety.measure import moving_clearance, static_clearance
 from staghunt.scenario import Scenario
-from staghunt.trajectory.quintic import SCHEDULE_SHARE, Piece, Reference
+from staghunt.trajectory.quintic import Piece, Reference
+from staghunt.trajectory.schedule import SCHEDULE_SHARE
 from staghunt.trajectory.team import RowTeam, TeamTrajectory, Track, end_time, row_of
 from staghunt.world import Cylinder, Prism
 from staghunt.world.dynamic import Dynamics, max_motion_speed
@@ -169,7 +170,7 @@ def lead_in(acceptance: "Acceptance", start: Start) -> np.ndarray | None:
     """``(N, 3)`` absolute lead-in points of a re-plan from a moving ``start``, where the new plan
     starts: each UAV goes on along its velocity for its stopping distance at the timing's braking
     rate (``|v|^2 / 2 a``, ``a`` = ``max_acceleration`` x
-    :data:`~staghunt.trajectory.quintic.SCHEDULE_SHARE`), so that the timing can take a sharp
+    :data:`~staghunt.trajectory.schedule.SCHEDULE_SHARE`), so that the timing can take a sharp
     first turn from the switch speed. A UAV whose lead-in would come closer than the game's
     clearance (:func:`game_margins`) to a known obstacle, or leave the site, goes on for its
     stopping distance at ``max_acceleration`` only. ``None`` when the team is nearly at rest
@@ -294,10 +295,31 @@ class Acceptance:
             return False
         return self.check(new, new.pieces[0].t0, new.arrival, margins, motions=False).safe
 
-    def problem_margins(self, clearance: float) -> Margins:
-        """The acceptance's margins for a re-plan whose game keeps ``clearance`` to obstacles
-        (:data:`CURVE_SLACK` less, at least 0)."""
-        return replace(self.margins, clearance=max(0.0, clearance - CURVE_SLACK))
+    def problem_margins(self, clearance: float, smooth: bool = False) -> Margins:
+        """The acceptance's margins for a re-plan whose game keeps ``clearance`` to obstacles:
+        :data:`CURVE_SLACK` less (at least 0) for the dense curve, which keeps within about
+        0.15 m of the game's polyline; for the ``smooth`` one
+        (:data:`~staghunt.trajectory.quintic.SMOOTH_SPACING`), which rounds the polyline's corners
+        by more, at least the acceptance's own, whatever the game granted a UAV within them."""
+        c = max(0.0, clearance - CURVE_SLACK)
+        return replace(self.margins, clearance=max(c, self.margins.clearance) if smooth else c)
+
+    def away_from(self, traj: TeamTrajectory, t0: float, t1: float, at: np.ndarray) -> list[str]:
+        """The problems of ``traj`` over ``[t0, t1]`` at the acceptance's own margins with the
+        known fixed obstacles other than those within the game's clearance of the points ``at``
+        ``(N, P, 3)`` where the plan starts. A game whose UAV starts within its clearance of an
+        obstacle relaxes the clearance to what the UAV has (:func:`game_problem`), for the whole
+        plan: this keeps the relaxation to the obstacles it was granted for (a receding plan
+        from 1.04 m of a pop-up passed a fixed obstacle 22 m on at 1.00 m, accepted at
+        0.84 m: scenario 2 episode 84 of benchmarks/replan.py at a fixed latency)."""
+        need = game_margins(self.margins)[0]
+        r = np.array([u.radius for u in self.scenario.team])
+        cyl, prm = self.known.shapes()
+        near = {o.name for o in cyl if float(static_clearance((o,), (), at, r).min()) < need}
+        near |= {o.name for o in prm if float(static_clearance((), (o,), at, r).min()) < need}
+        view = KnownWorld(self.scenario, dict(self.known.sensed), set(self.known.removed) | near)
+        verdict = self.check(traj, t0, t1, self.margins, known=view, motions=False)
+        return verdict.problems([u.name for u in self.scenario.team])
 
 
 def swept_obstacles(scenario: Scenario, dyn: Dynamics, windows: list[tuple[str, float, float]]

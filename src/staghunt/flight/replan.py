@@ -48,7 +48,7 @@ from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_p
 from staghunt.flight.records import Laps, ReplanStatus, Solved
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
-from staghunt.trajectory.quintic import Reference, timings
+from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, Reference, timings
 from staghunt.trajectory.team import TeamTrajectory, end_time
 from staghunt.world.dynamic import Dynamics
 
@@ -329,22 +329,24 @@ class Replanner:
         """``plan`` ``(N, K, 3)`` of ``sub`` timed from ``start`` (through the ``lead`` points,
         then ``tail`` ``(N, M, 3)`` absolute, the current plan beyond a receding horizon;
         ``head``: a stop piece flown before, from whose rest the plan starts), on the team's
-        common schedule and with each UAV at its own pace (:func:`~staghunt.trajectory.quintic.timings`).
-        Returns the new plan (the sooner timing that meets the limits within ``max_stretch``
-        and passes the acceptance), else ``None``, with the sooner one's problems and the
-        conflicts with known motions found (``None``: the timing failed)."""
+        common schedule and with each UAV at its own pace, the dense curve and the smooth one
+        (:func:`~staghunt.trajectory.quintic.timings`). Returns the new plan (the sooner timing
+        that meets the limits within ``max_stretch`` and passes the acceptance, at
+        :meth:`~staghunt.flight.known.Acceptance.problem_margins`, and at its own margins away
+        from the obstacles the plan starts near), else ``None``, with the sooner one's problems
+        and the conflicts with known motions found (``None``: the timing failed)."""
         sc = self.scenario
         goals = to_absolute(sub.world.terrain, sub.goals()[:, None])
         front = start.pos[:, None] if lead is None else np.stack([start.pos, lead], axis=1)
         parts = [front, to_absolute(sub.world.terrain, plan), goals] + ([tail] if tail is not None else [])
         try:
             pieces = timings(np.concatenate(parts, axis=1), start.t_s, sc.vehicle, start.vel, start.acc,
-                             max_stretch=max_stretch)
+                             max_stretch=max_stretch, spacings=(DENSE_SPACING, SMOOTH_SPACING))
         except ValueError as exc:
             return None, [str(exc)], None
-        margins = self.acceptance.problem_margins(sub.costs.min_clearance)
         first: tuple[list[str], list[tuple[str, float, float]]] | None = None
-        for piece in pieces:  # the sooner timing first; the other if its curve breaks a margin
+        for piece in pieces:  # the sooner timing first; the next if its curve breaks a margin
+            margins = self.acceptance.problem_margins(sub.costs.min_clearance, piece.spacing > DENSE_SPACING)
             new = Reference((head, piece) if head is not None else (piece,))
             verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
             problems = verdict.problems([u.name for u in sc.team])
@@ -352,6 +354,8 @@ class Replanner:
                      and self.acceptance.later_only(new, verdict, start.t_s + self.config.conflict_horizon, margins))
             if later:
                 problems = []
+            if not problems and margins.clearance < self.acceptance.margins.clearance:
+                problems = self.acceptance.away_from(new, new.pieces[0].t0, piece.t1, front)
             if not problems and head is None and self.config.straggler_check:
                 problems = self.acceptance.stragglers(new, start.base, start.t_s, self.learn_s)
             if not problems:

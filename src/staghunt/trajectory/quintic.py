@@ -15,7 +15,10 @@ A piece is either
   and if a peak still breaks ``max_speed`` or ``max_acceleration`` (norms, checked on a 20 ms
   grid, on a 100 ms one until that passes) the knot intervals where it does (and their
   neighbours) are slowed down, so a sharp
-  turn at the start of a re-plan slows the start, not the whole flight; or
+  turn at the start of a re-plan slows the start, not the whole flight. A re-plan also times
+  the **smooth** curve (:data:`SMOOTH_SPACING`: a quintic through the planned points alone,
+  which rounds the polyline's corners instead of turning sharply at them) and flies it if it is
+  sooner and keeps the acceptance's full margins (:func:`timings`); or
 - a **synchronised stop** (:func:`stop_piece`): the previous piece (or any team trajectory:
   one UAV's own, for a hold) with time slowed down by one common warp ``tau(t)``,
   ``tau' = 1 - (3u^2 - 2u^3)``, ``u = (t - t_s) / T``: every UAV stays on its planned path
@@ -40,6 +43,7 @@ import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
 
 from staghunt.task import VehicleLimits
+from staghunt.trajectory.schedule import knot_times, own_pace
 from staghunt.trajectory.team import Still, TeamTrajectory, end_time
 from staghunt.trajectory.timing import merge_waypoints, split_legs
 from staghunt.trajectory.warp import BRAKE_RAMP, brake_warp, slow_warp
@@ -51,10 +55,6 @@ COARSE_STEP_S = 0.1
 well, for a fifth of the samples; a schedule is accepted on the :data:`CHECK_STEP_S` grid only."""
 MARGIN = 0.98
 """Peaks are kept below this share of the limits (the grid may miss a peak between samples)."""
-SCHEDULE_SHARE = 0.5
-"""Share of ``max_acceleration`` :func:`knot_times` plans with: its turns' lateral acceleration
-and its speed changes (the rest is the spline's, between the knots). A re-plan's lead-in is the
-stopping distance at this share (:func:`staghunt.flight.known.lead_in`)."""
 CACHED = 8
 """Answers of :meth:`Piece.state` kept per piece."""
 REST_TOL = 1e-9
@@ -76,6 +76,8 @@ class Piece:
       (:func:`~staghunt.trajectory.warp.slow_warp`).
     - ``knots``: ``(M,)`` the waypoint times; ``points``: ``(N, M, 3)`` the planned points
       (a stop of a trajectory other than a piece: its positions at ``t0`` and at rest).
+    - ``spacing``: for a path, the longest sub-leg its spline was put through (m;
+      :data:`DENSE_SPACING`, or ``inf`` for the smooth curve through the planned points alone).
     """
 
     kind: Literal["path", "stop", "slow"]
@@ -88,6 +90,7 @@ class Piece:
     duration: float = 0.0
     brake: bool = False
     slow: tuple[float, float] = ()
+    spacing: float = 0.0
 
     @property
     def n_uavs(self) -> int:
@@ -218,76 +221,14 @@ def _quintic(times: np.ndarray, points: np.ndarray, v0: np.ndarray, a0: np.ndarr
     return make_interp_spline(times, y, k=5, bc_type=([(1, v0), (2, a0)], [(1, zero), (2, zero)]))
 
 
-def knot_times(points: np.ndarray, limits: VehicleLimits, v0: float = 0.0) -> np.ndarray:
-    """``(M,)`` waypoint times (from 0) of the team's dense paths ``points`` ``(N, M, 3)``.
-
-    The team's speed ``u`` at each point is that of its fastest UAV on the adjacent leg. It is
-    capped by the cruise speed and, at a turn, by ``sqrt(a_t rho)`` with ``rho`` the turn's
-    radius (the mean adjacent leg length over the turning angle, for every UAV) and
-    ``a_t = max_acceleration`` x :data:`SCHEDULE_SHARE`; a forward and a backward pass then keep
-    the speed changes within ``a_t`` (from ``v0`` at the start to rest at the end); a leg takes
-    ``2 L / (u_k + u_{k+1})`` (its longest UAV leg ``L``)."""
-    seg = np.diff(points, axis=1)  # (N, M - 1, 3)
-    length = np.linalg.norm(seg, axis=-1)  # (N, M - 1)
-    L = length.max(axis=0)
-    a_t = SCHEDULE_SHARE * limits.max_acceleration
-    cap = np.full(L.size + 1, min(limits.cruise_speed, limits.max_speed))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        unit = seg / length[..., None]
-        cos = np.clip(np.nansum(unit[:, :-1] * unit[:, 1:], axis=-1), -1.0, 1.0)  # (N, M - 2)
-        # a UAV that stays put on a leg (its team-mates fly it) has no direction there, so no
-        # turn: counted as one (a right angle of radius 0), it capped the team at a crawl
-        moving = (length[:, :-1] > 0.0) & (length[:, 1:] > 0.0)
-        angle = np.where(moving, np.arccos(cos), 0.0)
-        rho = 0.5 * (length[:, :-1] + length[:, 1:]) / angle
-    turn_cap = np.sqrt(a_t * np.where(angle > 1e-6, rho, np.inf)).min(axis=0)
-    cap[1:-1] = np.minimum(cap[1:-1], turn_cap)
-    cap[0], cap[-1] = min(cap[0], max(v0, 0.0)), 0.0
-    u = cap.copy()
-    for k in range(1, u.size):
-        u[k] = min(u[k], math.sqrt(u[k - 1] ** 2 + 2 * a_t * L[k - 1]))
-    for k in range(u.size - 2, -1, -1):
-        u[k] = min(u[k], math.sqrt(u[k + 1] ** 2 + 2 * a_t * L[k]))
-    dt = np.maximum(2.0 * L / np.maximum(u[:-1] + u[1:], 0.2), 1e-3)
-    return np.concatenate([[0.0], np.cumsum(dt)])
-
-
-def own_pace(dense: np.ndarray, limits: VehicleLimits, speed0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Knot times ``(M',)`` (from 0) and points ``(N, M', 3)`` of the team's dense paths ``dense``
-    ``(N, M, 3)``, each UAV at its own pace (``speed0`` ``(N,)``: its speed at the start).
-
-    :func:`knot_times` gives the whole team one schedule, each leg as long as its slowest UAV's
-    and each turn as slow as its sharpest: for a formation's parallel paths that is each UAV's
-    own, but paths re-planned from a moving state differ leg by leg, and the team's schedule
-    came to up to 4.7x the slowest UAV's own (benchmarks/JOURNAL.md, "Closed loop: why stops and
-    extra time stayed").
-    Here every UAV keeps its own schedule (:func:`knot_times` of its path alone) and waits out
-    its lead over the slowest along a smoothstep (its start and its arrival untouched: all
-    arrive together); the team's knots are the union of the UAVs' (closer than
-    :data:`MIN_KNOT_S` merged), every UAV's points at them interpolated along its own path,
-    so its own corners stay knots."""
-    N = dense.shape[0]
-    tau = np.stack([knot_times(dense[n:n + 1], limits, float(speed0[n])) for n in range(N)])  # (N, M)
-    end = tau[:, -1]
-    total = float(end.max())
-    x = tau / np.maximum(end, 1e-9)[:, None]
-    t = tau + (total - end)[:, None] * (x * x * (3.0 - 2.0 * x))  # (N, M) on the team's clock
-    grid = np.unique(t)
-    grid = grid[np.r_[True, np.diff(grid) > MIN_KNOT_S]]
-    grid[-1] = total
-    if grid.size < MIN_KNOTS:
-        grid = np.linspace(0.0, total, MIN_KNOTS)
-    pts = np.stack([np.stack([np.interp(grid, t[n], dense[n, :, c]) for c in range(3)], axis=-1)
-                    for n in range(N)])
-    return grid, pts
-
-
-MIN_KNOTS = 6
-"""Knots of :func:`own_pace`'s schedule, at least (a quintic with its end conditions needs them)."""
-MIN_KNOT_S = 0.3
-"""Seconds between two knots of :func:`own_pace`'s team schedule, at least (closer ones merged)."""
 DENSE_SPACING = 3.0
 """Longest sub-leg (m) of the dense paths a timed path interpolates."""
+SMOOTH_SPACING = math.inf
+"""The smooth candidate of a re-plan's timing (:func:`timings`): the spline through the planned
+points alone. At a corner of the polyline it swings wide instead of turning within 0.15 m of
+it, so it is flown only where it keeps the acceptance's full margins, but it is not slowed to
+a crawl by every corner of the game's paths (benchmarks/JOURNAL.md, "Closed loop: the smooth
+curve")."""
 STALL_TRIES = 3
 """Stretches in a row (on one check grid) after which a timing already longer than
 :data:`STALL_STRETCH` times its first schedule, whose worst peak over its limit has not come
@@ -301,11 +242,13 @@ DUPLICATE_M = 0.01
 
 def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                v0: np.ndarray | None = None, a0: np.ndarray | None = None,
-               max_tries: int = 20, max_stretch: float = math.inf, own: bool = False) -> Piece:
+               max_tries: int = 20, max_stretch: float = math.inf, own: bool = False,
+               spacing: float = DENSE_SPACING) -> Piece:
     """Time the team's paths ``points`` ``(N, M, 3)`` (absolute; ``points[:, 0]`` the state at
     ``t0``) starting with velocities ``v0`` and accelerations ``a0`` ``(N, 3)`` (default rest).
 
-    The paths are densified (:func:`~staghunt.trajectory.timing.split_legs`), timed by :func:`knot_times`, interpolated by a
+    The paths are densified (:func:`~staghunt.trajectory.timing.split_legs`, sub-legs of at most
+    ``spacing`` m; ``inf``: not at all), timed by :func:`knot_times`, interpolated by a
     quintic spline with the start and end conditions, and, if a peak on the check grid still
     breaks a limit, the knot intervals where it does (and their neighbours) are stretched.
     Raises ``ValueError`` if no schedule whose duration is at most ``max_stretch`` times the
@@ -323,7 +266,7 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     # rule, at a centimetre): a run of millimetre legs (waypoints slid together) otherwise
     # makes the spline swing wildly. Nobody moving: the start and the goal, a hold.
     keep = merge_waypoints(p, DUPLICATE_M)
-    dense, _ = split_legs(p[:, keep], DENSE_SPACING)
+    dense, _ = split_legs(p[:, keep], spacing)
     if own and N > 1:
         base, dense = own_pace(dense, limits, np.linalg.norm(v0, axis=-1))
     else:
@@ -346,7 +289,7 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
             vk, ak = _peaks(spline, times, step)
             v, a = float(vk.max()), float(ak.max())
         if v <= v_lim and a <= a_lim:
-            return Piece("path", float(times[0]), float(times[-1]), times, dense, spline=spline)
+            return Piece("path", float(times[0]), float(times[-1]), times, dense, spline=spline, spacing=spacing)
         # Slow down where a limit is broken (and one interval on each side), not everywhere: a
         # sharp turn at the start of a re-plan slows the start, not the whole flight.
         over = np.maximum(vk / v_lim, np.sqrt(ak / a_lim))
@@ -365,17 +308,19 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
 
 
 def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray | None = None,
-            a0: np.ndarray | None = None, max_tries: int = 20, max_stretch: float = math.inf) -> list[Piece]:
-    """The team's paths :func:`timed_path` on the team's common schedule and with each UAV at its
-    own pace (:func:`own_pace`; one UAV: the first only), those that meet the limits, soonest
-    first (``ValueError``: neither does)."""
+            a0: np.ndarray | None = None, max_tries: int = 20, max_stretch: float = math.inf,
+            spacings: tuple[float, ...] = (DENSE_SPACING,)) -> list[Piece]:
+    """The team's paths :func:`timed_path` at each of ``spacings``, on the team's common schedule
+    and with each UAV at its own pace (:func:`own_pace`; one UAV: the first only), those that
+    meet the limits, soonest first (``ValueError``: none does)."""
     found: list[Piece] = []
     error: ValueError | None = None
-    for own in (False, True)[: 2 if np.asarray(points).shape[0] > 1 else 1]:
-        try:
-            found.append(timed_path(points, t0, limits, v0, a0, max_tries, max_stretch, own))
-        except ValueError as exc:
-            error = error or exc
+    for spacing in spacings:
+        for own in (False, True)[: 2 if np.asarray(points).shape[0] > 1 else 1]:
+            try:
+                found.append(timed_path(points, t0, limits, v0, a0, max_tries, max_stretch, own, spacing))
+            except ValueError as exc:
+                error = error or exc
     if not found:
         assert error is not None
         raise error
