@@ -220,3 +220,23 @@ def test_a_slow_down_keeps_the_paths_and_continuity_and_arrives_exactly_its_dela
     np.testing.assert_allclose(np.linalg.norm(here[1][:, during], axis=-1), factor * base_speed, rtol=1e-9)
     assert base_speed.min() > 4.0  # cruising there: the team goes on at a quarter of that, never hovering
     assert slow_piece(ref, 3.0, LIMITS, 30.0, 0.25) is None  # the flight ends before such a slow-down is over
+
+
+def test_turn_backs_counts_the_points_after_the_lead_in_that_turn_a_uav_back():
+    """A re-plan's paths: the switch position, the lead-in's end (point 1), then the game's
+    waypoints. UAV2's first two waypoints lie behind its lead-in's end (it would turn back by
+    more than 90 degrees there); its third and UAV1's all lie ahead: drop two. At most
+    ``most``; never the goal; none when nobody turns back."""
+    from staghunt.trajectory.timing import turn_backs
+
+    a = np.array([[0.0, 0.0, 10.0], [8.0, 0.0, 10.0], [12.0, 1.0, 10.0], [16.0, 2.0, 10.0],
+                  [20.0, 3.0, 10.0], [40.0, 3.0, 10.0]])
+    b = np.array([[0.0, 10.0, 10.0], [8.0, 10.0, 10.0], [7.0, 13.0, 10.0], [6.0, 16.0, 10.0],
+                  [10.0, 19.0, 10.0], [40.0, 13.0, 10.0]])
+    pts = np.stack([a, b])  # (2, 6, 3)
+    assert turn_backs(pts, 1, 3) == 2  # (7, 13) and (6, 16) lie behind x = 8; (10, 19) does not
+    assert turn_backs(pts, 1, 1) == 1
+    assert turn_backs(pts[:1], 1, 3) == 0
+    back = pts.copy()
+    back[1, 2:5, 0] = 5.0  # every waypoint of UAV2 behind: the goal is kept
+    assert turn_backs(back, 1, 10) == 3

@@ -50,12 +50,16 @@ from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
 from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, Reference, timings
 from staghunt.trajectory.team import TeamTrajectory, end_time
+from staghunt.trajectory.timing import turn_backs
 from staghunt.world.dynamic import Dynamics
 
 WIDE_AZIMUTH = math.pi / 2
 """Half-width of the heading range of a plan from rest (a stop, or the hover): the paper's
 ``pi/4`` keeps every leg within 45 degrees of the goal direction, and a UAV at rest just in
 front of an obstacle cannot leave it that way."""
+TURN_BACK_POINTS = 3
+"""Game waypoints after the lead-in's end dropped at most, for a timing in which no UAV turns
+back there (:func:`~staghunt.trajectory.timing.turn_backs`)."""
 MAX_STRETCH = 2.0
 """A plan from a moving switch state that must be slowed more than this to meet the limits
 (a sharp turn at speed) is flown from rest instead: stop in sync, then the new plan."""
@@ -330,8 +334,9 @@ class Replanner:
         then ``tail`` ``(N, M, 3)`` absolute, the current plan beyond a receding horizon;
         ``head``: a stop piece flown before, from whose rest the plan starts), on the team's
         common schedule and with each UAV at its own pace, the dense curve and the smooth one
-        (:func:`~staghunt.trajectory.quintic.timings`). Returns the new plan (the sooner timing
-        that meets the limits within ``max_stretch`` and passes the acceptance, at
+        (:func:`~staghunt.trajectory.quintic.timings`), and again without the game's waypoints
+        that turn a UAV back at the lead-in's end. Returns the new plan (the soonest timing that
+        meets the limits within ``max_stretch`` and passes the acceptance, at
         :meth:`~staghunt.flight.known.Acceptance.problem_margins`, and at its own margins away
         from the obstacles the plan starts near), else ``None``, with the sooner one's problems
         and the conflicts with known motions found (``None``: the timing failed)."""
@@ -339,14 +344,28 @@ class Replanner:
         goals = to_absolute(sub.world.terrain, sub.goals()[:, None])
         front = start.pos[:, None] if lead is None else np.stack([start.pos, lead], axis=1)
         parts = [front, to_absolute(sub.world.terrain, plan), goals] + ([tail] if tail is not None else [])
-        try:
-            pieces = timings(np.concatenate(parts, axis=1), start.t_s, sc.vehicle, start.vel, start.acc,
-                             max_stretch=max_stretch, spacings=(DENSE_SPACING, SMOOTH_SPACING))
-        except ValueError as exc:
-            return None, [str(exc)], None
+        points = np.concatenate(parts, axis=1)
+        # also timed without the game's points that turn a UAV back at the lead-in's end
+        drop = turn_backs(points, 1, TURN_BACK_POINTS) if lead is not None else 0
+        tries = [points] + ([np.delete(points, np.s_[2:2 + drop], axis=1)] if drop else [])
+        pieces: list[Any] = []
+        loose: set[int] = set()  # the timings off the game's polyline
+        error: ValueError | None = None
+        for i, pts in enumerate(tries):
+            try:
+                found = timings(pts, start.t_s, sc.vehicle, start.vel, start.acc, max_stretch=max_stretch,
+                                spacings=(DENSE_SPACING, SMOOTH_SPACING))
+            except ValueError as exc:
+                error = error or exc
+                continue
+            pieces += found
+            loose |= {id(q) for q in found if i > 0 or q.spacing > DENSE_SPACING}
+        if not pieces:
+            return None, [str(error)], None
+        pieces.sort(key=lambda q: q.t1)
         first: tuple[list[str], list[tuple[str, float, float]]] | None = None
         for piece in pieces:  # the sooner timing first; the next if its curve breaks a margin
-            margins = self.acceptance.problem_margins(sub.costs.min_clearance, piece.spacing > DENSE_SPACING)
+            margins = self.acceptance.problem_margins(sub.costs.min_clearance, id(piece) in loose)
             new = Reference((head, piece) if head is not None else (piece,))
             verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
             problems = verdict.problems([u.name for u in sc.team])

@@ -82,6 +82,22 @@ def merge_waypoints(points: np.ndarray, tol: float = MERGE_M) -> np.ndarray:
     return np.asarray(keep, dtype=int)
 
 
+def turn_backs(points: np.ndarray, at: int, most: int) -> int:
+    """How many of the points after ``at`` in ``points`` ``(N, M, 3)`` to drop, at most
+    ``most``, so that no UAV turns back (by more than 90 degrees) at point ``at``: dropped one
+    after the other while some UAV's next leg still points back, always keeping the last point.
+    0: nobody turns back there."""
+    p = np.asarray(points, dtype=float)
+    into = p[:, at] - p[:, at - 1]  # (N, 3)
+    dropped = 0
+    while dropped < most and at + dropped + 2 < p.shape[1]:
+        out = p[:, at + dropped + 1] - p[:, at]
+        if not np.any(np.einsum("nc,nc->n", into, out) < 0.0):
+            break
+        dropped += 1
+    return dropped
+
+
 def team_chord(points: np.ndarray) -> np.ndarray:
     """``(M,)`` the team's path parameter at each point of ``points`` ``(N, M, 3)``: the
     cumulative sum of the longest UAV leg (m)."""
