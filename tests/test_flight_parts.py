@@ -605,8 +605,8 @@ def test_a_smooth_curve_is_accepted_at_the_full_margins_a_dense_one_at_the_games
     assert full == pytest.approx(sc.costs.min_clearance + 0.25)  # 1.25 m
     game = game_margins(acc.margins)[0]  # 1.45 m
     assert acc.problem_margins(game).clearance == pytest.approx(full)
-    assert acc.problem_margins(game, smooth=True).clearance == pytest.approx(full)
+    assert acc.problem_margins(game, off_polyline=True).clearance == pytest.approx(full)
     assert acc.problem_margins(1.1).clearance == pytest.approx(1.1 - CURVE_SLACK)  # granted to a UAV within them
-    assert acc.problem_margins(1.1, smooth=True).clearance == pytest.approx(full)
-    assert acc.problem_margins(3.0, smooth=True).clearance == pytest.approx(3.0 - CURVE_SLACK)
-    assert acc.problem_margins(1.1, smooth=True).separation == acc.margins.separation
+    assert acc.problem_margins(1.1, off_polyline=True).clearance == pytest.approx(full)
+    assert acc.problem_margins(3.0, off_polyline=True).clearance == pytest.approx(3.0 - CURVE_SLACK)
+    assert acc.problem_margins(1.1, off_polyline=True).separation == acc.margins.separation

@@ -295,14 +295,15 @@ class Acceptance:
             return False
         return self.check(new, new.pieces[0].t0, new.arrival, margins, motions=False).safe
 
-    def problem_margins(self, clearance: float, smooth: bool = False) -> Margins:
+    def problem_margins(self, clearance: float, off_polyline: bool = False) -> Margins:
         """The acceptance's margins for a re-plan whose game keeps ``clearance`` to obstacles:
         :data:`CURVE_SLACK` less (at least 0) for the dense curve, which keeps within about
-        0.15 m of the game's polyline; for the ``smooth`` one
-        (:data:`~staghunt.trajectory.quintic.SMOOTH_SPACING`), which rounds the polyline's corners
-        by more, at least the acceptance's own, whatever the game granted a UAV within them."""
+        0.15 m of the game's polyline; for a curve ``off_polyline`` (the smooth one,
+        :data:`~staghunt.trajectory.quintic.SMOOTH_SPACING`, which rounds the polyline's corners
+        by more, or one without the game's waypoints that turn a UAV back), at least the
+        acceptance's own, whatever the game granted a UAV within them."""
         c = max(0.0, clearance - CURVE_SLACK)
-        return replace(self.margins, clearance=max(c, self.margins.clearance) if smooth else c)
+        return replace(self.margins, clearance=max(c, self.margins.clearance) if off_polyline else c)
 
     def away_from(self, traj: TeamTrajectory, t0: float, t1: float, at: np.ndarray) -> list[str]:
         """The problems of ``traj`` over ``[t0, t1]`` at the acceptance's own margins with the

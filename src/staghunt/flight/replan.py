@@ -348,8 +348,7 @@ class Replanner:
         # also timed without the game's points that turn a UAV back at the lead-in's end
         drop = turn_backs(points, 1, TURN_BACK_POINTS) if lead is not None else 0
         tries = [points] + ([np.delete(points, np.s_[2:2 + drop], axis=1)] if drop else [])
-        pieces: list[Any] = []
-        loose: set[int] = set()  # the timings off the game's polyline
+        pieces: list[tuple[Any, bool]] = []  # (timing, off the game's polyline)
         error: ValueError | None = None
         for i, pts in enumerate(tries):
             try:
@@ -358,14 +357,13 @@ class Replanner:
             except ValueError as exc:
                 error = error or exc
                 continue
-            pieces += found
-            loose |= {id(q) for q in found if i > 0 or q.spacing > DENSE_SPACING}
+            pieces += [(q, i > 0 or q.spacing > DENSE_SPACING) for q in found]
         if not pieces:
             return None, [str(error)], None
-        pieces.sort(key=lambda q: q.t1)
+        pieces.sort(key=lambda c: c[0].t1)
         first: tuple[list[str], list[tuple[str, float, float]]] | None = None
-        for piece in pieces:  # the sooner timing first; the next if its curve breaks a margin
-            margins = self.acceptance.problem_margins(sub.costs.min_clearance, id(piece) in loose)
+        for piece, loose in pieces:  # the sooner timing first; the next if its curve breaks a margin
+            margins = self.acceptance.problem_margins(sub.costs.min_clearance, loose)
             new = Reference((head, piece) if head is not None else (piece,))
             verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
             problems = verdict.problems([u.name for u in sc.team])
