@@ -114,7 +114,7 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
     # UAV 2 6 m out of the formation: the plan still fails its certificate after the local passes.
 
     class OneCertificate(Deadline):
-        def fits(self, seconds: float) -> bool:
+        def fits_certificate(self, *then: str) -> bool:
             self.asked = getattr(self, "asked", 0) + 1
             return self.asked == 1
 
@@ -129,6 +129,15 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
     assert one.certificates == 1 and not one.certificate.is_equilibrium
     assert "certify the better replies" in one.notes[-1]
     assert made["roomy"][0].certificates > 1 and made["roomy"][1] > flown_once  # with time, they are adopted
+    # Flying a plan is known to take longer than the time left after a certificate: no local
+    # pass (its gains could not be flown) and no reply adopted; the certificate is still made.
+    slow = Deadline(time.perf_counter() + 600.0, 10.0, steps={"accept": 595.0, "local pass": 10.0})
+    flown_plans.clear()
+    held = certify_and_improve(sc, far, "first", accept, search, options, 4, np.random.default_rng(5),
+                               engine.run_swarm, engine, engine, np.pi / 4, deadline=slow)
+    assert not flown_plans and held.flown == "first" and np.array_equal(held.plan, far)
+    assert held.certificates == 1 and "certify the better replies" in held.notes[-1]
+    assert slow.steps == {"accept": 595.0, "local pass": 10.0}  # nothing was timed
     late = certify_and_improve(sc, plan, "first", accept, search, options, 4, np.random.default_rng(5),
                                engine.run_swarm, engine, engine, np.pi / 4,
                                deadline=Deadline(time.perf_counter() - 1.0))

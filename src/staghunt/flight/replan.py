@@ -124,6 +124,7 @@ class Replanner:
         self.acceptance = Acceptance(scenario, self.known, dyn, config.allowance)
         self.fallback = Fallback(self.acceptance, config.conflict_horizon)
         self.certificate_s = 0.0  # running estimate of a certificate's wall time
+        self.steps: dict[str, float] = {}  # and of the certify-and-improve loop's other steps (Deadline.steps)
         self.fallback_s = 0.0  # running estimate of the fallback's wall time (its stops' and sidestep's checks)
         # how long a UAV that missed a plan flies on before a heartbeat tells it (a tick and the
         # link's worst delay; the station sets it)
@@ -237,7 +238,7 @@ class Replanner:
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full
         if deadline.end is not None:
-            deadline = Deadline(deadline.end - RESERVE_SHARE * full, deadline.certificate_s)
+            deadline = Deadline(deadline.end - RESERVE_SHARE * full, deadline.certificate_s, self.steps)
         done = certify_and_improve(
             chosen.sub, chosen.out.plan, chosen.plan, lambda p: self._timed(chosen.sub, p, *chosen.timing)[0],
             self.search, cfg.certify_options(), cfg.certify_rounds, self.rng, self._certifier.run_swarm,

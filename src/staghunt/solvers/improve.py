@@ -35,10 +35,14 @@ Flown = TypeVar("Flown")
 @dataclass
 class Deadline:
     """A wall-clock deadline (``time.perf_counter()`` seconds; ``None``: none) and the running
-    estimate of how long a certificate takes (s), to start one only if it can end in time."""
+    estimates of how long a certificate takes (s) and the loop's other unwatched steps
+    (``steps``: ``"accept"``, flying a plan; ``"local pass"``, one pass of the UAVs' local
+    searches), to start one only if it can end in time. ``steps`` may be shared between deadlines
+    (a flight's re-plans keep one)."""
 
     end: float | None = None
     certificate_s: float = 0.0
+    steps: dict[str, float] = field(default_factory=dict)
 
     @classmethod
     def after(cls, seconds: float, certificate_s: float = 0.0) -> "Deadline":
@@ -53,6 +57,24 @@ class Deadline:
 
     def fits(self, seconds: float) -> bool:
         return self.left() >= seconds
+
+    def fits_steps(self, *names: str) -> bool:
+        """Whether the steps ``names`` (by their running estimates) can end before the deadline."""
+        return self.fits(sum(self.steps.get(n, 0.0) for n in names))
+
+    def fits_certificate(self, *then: str) -> bool:
+        """Whether a certificate, then the steps ``then``, can end before the deadline."""
+        return self.fits(self.certificate_s + sum(self.steps.get(n, 0.0) for n in then))
+
+    def timed(self, name: str, step: Callable[..., Any], *args: Any, **kwargs: Any) -> Any:
+        """``step(*args, **kwargs)``, its wall time entering the running estimate of ``name`` (at once if longer,
+        else averaged with it)."""
+        t0 = time.perf_counter()
+        try:
+            return step(*args, **kwargs)
+        finally:
+            took, before = time.perf_counter() - t0, self.steps.get(name)
+            self.steps[name] = took if before is None else max(took, 0.5 * (before + took))
 
 
 class Cancelled(Exception):
@@ -177,9 +199,11 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
 
     Each certificate stops at its first refutation (``certify_plan``'s ``refute``: only the
     verdict and the replies found matter here), so a failed one leaves time for the next round;
-    a refuted certificate's largest gap is the largest found until it stopped. Its replies are
-    adopted only if a certificate still fits before the deadline (adopting them, timing the plan
-    and the local searches are not watched by the deadline).
+    a refuted certificate's largest gap is the largest found until it stopped. Flying a plan
+    (``accept``) and a pass of the local searches are not watched by the deadline: each starts
+    only if its running estimate (``deadline.steps``) says it ends in time, a pass only if the
+    plan can then be flown, and a refuted certificate's replies are adopted only if flying one
+    and another certificate still fit.
 
     ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
     searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
@@ -198,15 +222,15 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
         team, J = plan.copy(), judge.evaluate(model, plan[None]).total[0]
         last: tuple[LocalSearch, ...] = ()
         for _ in range(LOCAL_PASSES):
-            if deadline.passed:
+            if not deadline.fits_steps("local pass", "accept"):  # its gains count only if flown
                 break
-            done = local_pass(model, team, J, local, eps, judge, workers=workers)
+            done = deadline.timed("local pass", local_pass, model, team, J, local, eps, judge, workers=workers)
             team, J, last = done.plan, done.costs, done.searches
             out.spent += done.evaluations
             if not done.gains.any():
                 break
-        if not np.array_equal(team, plan):
-            again = accept(team)
+        if not np.array_equal(team, plan) and deadline.fits_steps("accept"):
+            again = deadline.timed("accept", accept, team)
             if again is not None:
                 return team, again, True, last
         return plan, flown, False, last
@@ -216,7 +240,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
         plan, flown, _, searched = settle(plan, flown)
     carried: dict[int, Any] = {}
     for round_ in range(rounds + 1):
-        if not deadline.fits(deadline.certificate_s):
+        if not deadline.fits_certificate():
             out.notes.append("deadline: no time left for a certificate")
             break
         t0 = time.perf_counter()
@@ -240,7 +264,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
             best = (flown, plan, cert)
         if cert.is_equilibrium or round_ == rounds:
             break
-        if not deadline.fits(deadline.certificate_s):  # an improvement that cannot be certified in time
+        if not deadline.fits_certificate("accept"):  # an improvement that cannot be flown and certified in time
             out.notes.append("deadline: no time left to certify the better replies")
             break
         order = [n for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative)
@@ -257,17 +281,19 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                 if c.total_violation[0] == 0 and c.total[0][n] < (1 - eps) * J[n]:
                     team, J, taken = candidate, c.total[0], taken + 1
             if taken > 1:
-                again = accept(team)
+                again = deadline.timed("accept", accept, team)
                 adopted = (team, again) if again is not None else None
         carried = {}
         if adopted is None:  # one reply: the largest gap that can be flown
             for n in order:
+                if not deadline.fits_certificate("accept"):
+                    break
                 candidate = plan.copy()
                 candidate[n] = cert.uavs[n].deviation
                 out.spent += 1
                 if judge.evaluate(model, candidate[None]).total_violation[0] > 0:
                     continue
-                again = accept(candidate)
+                again = deadline.timed("accept", accept, candidate)
                 if again is not None:
                     adopted = (candidate, again)
                     # the others fly what UAV n's search fixed (if it was searched to the end)
