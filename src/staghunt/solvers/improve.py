@@ -186,24 +186,26 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     ``azimuth``) and improve it while the certificate finds better replies.
 
     With ``rounds`` > 0, every UAV first makes the certificate's own local search, in passes
-    until none gains more than epsilon (or the deadline passes); the gains are kept if
-    ``accept`` flies the plan. Then,
-    while a certificate finds better replies and ``rounds`` allow: every reply in turn
-    (largest gap first) that still gains more than epsilon with those already kept and keeps
-    the plan feasible; if that keeps more than one and ``accept`` flies the plan, certify it;
-    else the reply of the UAV with the largest gap that ``accept`` flies (or the next one
-    beyond epsilon), and the next certificate keeps that UAV's search (the others fly what it
-    fixed, if it was searched to the end). One UAV's better reply can widen the others' gaps,
-    so the plan returned is the certified one, else the one whose certificate found the least
-    largest relative gap.
+    until none gains more than epsilon (or the deadline passes). Then, while a certificate finds
+    better replies and ``rounds`` allow: every reply in turn (largest gap first) that still
+    gains more than epsilon with those already kept and keeps the plan feasible; if that keeps
+    fewer than two, the reply of the UAV with the largest gap that keeps the plan feasible, and
+    the next certificate keeps that UAV's search (the others fly what it fixed, if it was
+    searched to the end); then the local passes again, and the next certificate.
+
+    Only the plan kept is flown (``accept``), once the certificates are done: the certified
+    one, else the one whose certificate found the least largest relative gap (one UAV's better
+    reply can widen the others' gaps); if ``accept`` cannot fly it, the next in that order, and
+    ``plan`` itself (``flown``) needs no flying. Flying a plan is costly (its timing and the
+    checks in time), so flying only the one kept leaves the deadline's time to certificates.
 
     Each certificate stops at its first refutation (``certify_plan``'s ``refute``: only the
     verdict and the replies found matter here), so a failed one leaves time for the next round;
     a refuted certificate's largest gap is the largest found until it stopped. Flying a plan
-    (``accept``) and a pass of the local searches are not watched by the deadline: each starts
-    only if its running estimate (``deadline.steps``) says it ends in time, a pass only if the
-    plan can then be flown, and a refuted certificate's replies are adopted only if flying one
-    and another certificate still fit.
+    and a pass of the local searches are not watched by the deadline: each starts only if its
+    running estimate (``deadline.steps``) says it ends in time; a pass, a certificate of a plan
+    other than ``plan`` and the adoption of replies start only if flying a plan still fits
+    after them.
 
     ``search``, ``options``: the certificates' settings; each draws its seed from ``rng``,
     searches with ``runner``/``engine`` (``workers`` side by side); ``judge`` evaluates
@@ -214,33 +216,30 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     model = CostModel.from_scenario(sub)
     local = int(LOCAL_SHARE * search.particles * (search.iterations + 1))
     eps = options.epsilon
-    best: tuple[Flown, np.ndarray, Certificate] | None = None
+    given, made = plan, []
     out = Improved(flown, plan, None)
 
-    def settle(plan: np.ndarray, flown: Flown) -> tuple[np.ndarray, Flown, bool, tuple[LocalSearch, ...]]:
-        """The certificate's own local searches before it, kept if ``accept`` flies the plan."""
+    def settle(plan: np.ndarray) -> tuple[np.ndarray, tuple[LocalSearch, ...]]:
+        """The certificate's own local searches before it, in passes while one gains more than
+        epsilon: the plan they reach and the last pass's searches."""
         team, J = plan.copy(), judge.evaluate(model, plan[None]).total[0]
         last: tuple[LocalSearch, ...] = ()
         for _ in range(LOCAL_PASSES):
-            if not deadline.fits_steps("local pass", "accept"):  # its gains count only if flown
+            if not deadline.fits_steps("local pass", "accept"):  # its gains count only if the plan is flown
                 break
             done = deadline.timed("local pass", local_pass, model, team, J, local, eps, judge, workers=workers)
             team, J, last = done.plan, done.costs, done.searches
             out.spent += done.evaluations
             if not done.gains.any():
                 break
-        if not np.array_equal(team, plan) and deadline.fits_steps("accept"):
-            again = deadline.timed("accept", accept, team)
-            if again is not None:
-                return team, again, True, last
-        return plan, flown, False, last
+        return (plan if np.array_equal(team, plan) else team), last
 
     searched: tuple[LocalSearch, ...] = ()
     if rounds > 0:
-        plan, flown, _, searched = settle(plan, flown)
+        plan, searched = settle(plan)
     carried: dict[int, Any] = {}
     for round_ in range(rounds + 1):
-        if not deadline.fits_certificate():
+        if not (deadline.fits_certificate() if plan is given else deadline.fits_certificate("accept")):
             out.notes.append("deadline: no time left for a certificate")
             break
         t0 = time.perf_counter()
@@ -260,11 +259,10 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                 max(took, 0.5 * (deadline.certificate_s + took))
         out.certificates += 1
         out.spent += sum(u.evaluations - u.taken for u in cert.uavs)  # settle() counted what it took
-        if best is None or cert.max_relative_gap < best[2].max_relative_gap:
-            best = (flown, plan, cert)
+        made.append((plan, cert))
         if cert.is_equilibrium or round_ == rounds:
             break
-        if not deadline.fits_certificate("accept"):  # an improvement that cannot be flown and certified in time
+        if not deadline.fits_certificate("accept"):  # an improvement that cannot be certified and flown in time
             out.notes.append("deadline: no time left to certify the better replies")
             break
         order = [n for n in sorted(range(len(cert.uavs)), key=lambda m: -cert.uavs[m].relative)
@@ -280,33 +278,35 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                 out.spent += 1
                 if c.total_violation[0] == 0 and c.total[0][n] < (1 - eps) * J[n]:
                     team, J, taken = candidate, c.total[0], taken + 1
-            if taken > 1:
-                again = deadline.timed("accept", accept, team)
-                adopted = (team, again) if again is not None else None
+            adopted = team if taken > 1 else None
         carried = {}
-        if adopted is None:  # one reply: the largest gap that can be flown
+        if adopted is None:  # one reply: the largest gap that keeps the plan feasible
             for n in order:
-                if not deadline.fits_certificate("accept"):
-                    break
                 candidate = plan.copy()
                 candidate[n] = cert.uavs[n].deviation
                 out.spent += 1
-                if judge.evaluate(model, candidate[None]).total_violation[0] > 0:
-                    continue
-                again = deadline.timed("accept", accept, candidate)
-                if again is not None:
-                    adopted = (candidate, again)
+                if judge.evaluate(model, candidate[None]).total_violation[0] == 0:
+                    adopted = candidate
                     # the others fly what UAV n's search fixed (if it was searched to the end)
                     carried = {n: cert.uavs[n]} if cert.uavs[n].complete else {}
                     break
         if adopted is None:
             break
-        plan, flown = adopted
-        plan, flown, moved, searched = settle(plan, flown)
-        if moved:  # a carried search fixed the others' paths as they were
+        plan, searched = settle(adopted)
+        if plan is not adopted:  # a carried search fixed the others' paths as they were
             carried = {}
-    if best is not None:
-        out.flown, out.plan, out.certificate = best
-    else:
-        out.flown, out.plan = flown, plan
+    # the plan flown: the certified one, else the one whose certificate found the least largest gap
+    for plan, cert in sorted(made, key=lambda m: (not m[1].is_equilibrium, m[1].max_relative_gap)):
+        if plan is given:
+            out.plan, out.certificate = plan, cert
+            return out
+        if not deadline.fits_steps("accept"):
+            out.notes.append("deadline: no time left to fly a plan certified")
+            break
+        again = deadline.timed("accept", accept, plan)
+        if again is not None:
+            out.flown, out.plan, out.certificate = again, plan, cert
+            return out
+        found = "an equilibrium" if cert.is_equilibrium else f"with a largest gap of {100 * cert.max_relative_gap:.1f} %"
+        out.notes.append(f"a plan certified {found} could not be flown")
     return out
