@@ -66,9 +66,9 @@ MAX_STRETCH = 2.0
 GAME_SHARE = 0.4
 """Share of the deadline the game's rounds may take; the rest is for timing, acceptance and
 the certificate."""
-RESERVE_SHARE = 0.15
-"""Share of the deadline kept free at its end: no certificate starts that its running estimate
-says would end in it."""
+RESERVE_SHARE = 0.10
+"""Share of the deadline kept free at its end: no certificate, local pass or timing of a plan
+starts that its running estimate says would end in it (the estimates' errors end there)."""
 CERTIFICATE_PRIOR = 0.25
 """A flight's first estimate of a certificate's wall time, as a share of the deadline."""
 REST_SHARE = 0.85
