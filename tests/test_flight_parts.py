@@ -298,6 +298,32 @@ def test_the_station_does_not_believe_a_holding_uav_flies_a_plan_made_before_its
     assert np.allclose(station.team.state(at)[0][:, 0], swerve.state(at)[0][:, 0])
 
 
+def test_the_station_keeps_a_plan_a_uav_acknowledged_while_the_uav_still_flies_the_one_before():
+    """A UAV flies its old plan until the one it acknowledged starts, and its telemetry names the
+    plan it flies. That alone does not take the acknowledged plan out of the station's belief:
+    the UAV drops a pending plan only when it holds (site_wedge episode 17: with UAV7's newer
+    plan refused, every plan made from the belief without its pending one started where UAV7
+    would not be, and UAV7 refused 15 in a row, 'start')."""
+    at = np.array([3.5])
+    for hold in (None, (2.3, HoldReason.REFLEX)):
+        ref, station = _station_on_two_straight_paths()
+        swerve, other = _spliced(ref, 3.0, 0.0), _spliced(ref, 4.0, 2.0)
+        station.plans[1] = PlanMessage(1, swerve, 3.0, (0, 1), (None, None))
+        station.released = (1, 3.0)
+        station._observe(2.1, [Ack(0, 1, True), Ack(1, 1, True)])
+        station.plans[2] = PlanMessage(2, other, 4.0, (0, 1), (None, None))
+        station.released = (2, 4.0)
+        station._observe(2.2, [Ack(0, 2, False, "start")])
+        p, v = ref.state(np.array([2.3]))[:2, 0, 0]
+        station._observe(2.4, [Telemetry(0, 2.3, p, v, 0, hold, ())])  # still on plan 0
+        believed = station.team.state(at)[0][0, 0]
+        if hold is None:  # plan 1 is pending on board
+            assert station.taken[0] == 1 and np.allclose(believed, swerve.state(at)[0][0, 0])
+        else:  # the hold dropped it: the UAV stops on plan 0
+            stop = hold_piece(Track(((0.0, ref, 0),)), 2.3, station.scenario.vehicle, HoldReason.REFLEX)
+            assert station.taken[0] == 0 and np.allclose(believed, stop.state(at)[0][0, 0])
+
+
 def test_a_moving_team_with_no_plan_yet_flies_on_and_solves_again_while_a_later_stop_passes():
     """A re-plan of a moving team that finds no plan from its state does not stop it while a
     stop decided at the next re-plan still passes: the team flies on (no stop sent), the station

@@ -152,7 +152,7 @@ class GroundStation:
                 if old is not None and old.time >= m.time:
                     continue
                 self.telemetry[m.uav] = m
-                if m.version < self.taken[m.uav] and m.version in self.history[m.uav]:
+                if m.version < self.taken[m.uav] and m.version in self.history[m.uav] and self._dropped(m):
                     # it acknowledged a plan, then held before its start: it flies the older one
                     self.tracks[m.uav] = self.history[m.uav][m.version]
                     self.taken[m.uav], self.held[m.uav] = m.version, None
@@ -169,6 +169,17 @@ class GroundStation:
         for e in self.dyn.events:
             if e.kind == "disappear" and e.time <= t:
                 self.replanner.known.removed.add(e.name)
+
+    def _dropped(self, m: Telemetry) -> bool:
+        """Whether UAV ``m.uav`` has dropped the plans it acknowledged after the one it flies
+        (``m.version``): it holds, on a hold that the newest plan it acknowledged was not made
+        knowing of (a UAV drops its pending plan when it holds, and resumes with the next plan
+        it takes). Flying the older plan until the acknowledged one starts is no such sign."""
+        if m.hold is None:
+            return False
+        p = self.plans.get(self.taken[m.uav])
+        knew = p.holds[m.uav] if p is not None and len(p.holds) > m.uav else None
+        return knew != m.hold[0]
 
     # ------------------------------------------------------------------ the tick
 
