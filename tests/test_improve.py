@@ -7,6 +7,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from staghunt import load_scenario
 from staghunt.costs import CostModel
@@ -14,7 +15,7 @@ from staghunt.costs.single import segment_axis_distance
 from staghunt.engine import get_engine
 from staghunt.solvers.clear import CLEAR_PAD, pushed_clear
 from staghunt.solvers.game import best_response_rounds
-from staghunt.solvers.improve import Deadline, anytime_rounds, certify_and_improve
+from staghunt.solvers.improve import ESTIMATE_DECAY, Deadline, anytime_rounds, certify_and_improve
 from staghunt.solvers.response import CertifyOptions, check_search
 
 SMALL = str(Path(__file__).parent / "data" / "flight_small.toml")
@@ -144,6 +145,13 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
                                engine.run_swarm, engine, engine, np.pi / 4,
                                deadline=Deadline(time.perf_counter() - 1.0))
     assert late.certificate is None and late.certificates == 0 and "deadline" in late.notes[0]
+    # An estimate grown past the time left (one slow certificate) shrinks while it blocks: else
+    # no certificate would ever measure it again.
+    grown = Deadline(time.perf_counter() + 60.0, 100.0)
+    for k in range(2):
+        out = certify_and_improve(sc, plan, "first", accept, search, options, 4, np.random.default_rng(5),
+                                  engine.run_swarm, engine, engine, np.pi / 4, deadline=grown)
+        assert out.certificates == 0 and grown.certificate_s == pytest.approx(100.0 * ESTIMATE_DECAY ** (k + 1))
 
 
 def test_a_certificate_still_searching_at_the_deadline_is_abandoned():

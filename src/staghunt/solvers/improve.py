@@ -28,6 +28,10 @@ from staghunt.solvers.swarm import SwarmRunner
 
 LOCAL_PASSES = 5
 """Most passes of the UAVs' local searches before a certificate."""
+ESTIMATE_DECAY = 0.8
+"""A certificate's running estimate shrinks by this factor whenever it leaves no time for the
+first certificate of a call: an estimate grown by one slow or abandoned certificate would
+otherwise stop every later certificate, the only measurements that could bring it down."""
 
 Flown = TypeVar("Flown")
 
@@ -241,6 +245,8 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     for round_ in range(rounds + 1):
         if not (deadline.fits_certificate() if plan is given else deadline.fits_certificate("accept")):
             out.notes.append("deadline: no time left for a certificate")
+            if out.certificates == 0 and deadline.end is not None:
+                deadline.certificate_s *= ESTIMATE_DECAY
             break
         t0 = time.perf_counter()
         request = CertifyRequest.of_checked(sub, plan, search, options, int(rng.integers(2**31)))
