@@ -48,7 +48,7 @@ from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_p
 from staghunt.flight.records import Laps, ReplanStatus, Solved
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
-from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, Reference, timings
+from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, Piece, Reference, timings
 from staghunt.trajectory.team import TeamTrajectory, end_time
 from staghunt.trajectory.timing import turn_backs
 from staghunt.world.dynamic import Dynamics
@@ -349,7 +349,7 @@ class Replanner:
         # also timed without the game's points that turn a UAV back at the lead-in's end
         drop = turn_backs(points, 1, TURN_BACK_POINTS) if lead is not None else 0
         tries = [points] + ([np.delete(points, np.s_[2:2 + drop], axis=1)] if drop else [])
-        pieces: list[tuple[Any, bool]] = []  # (timing, off the game's polyline)
+        pieces: list[tuple[Piece, bool]] = []  # (timing, off the game's polyline)
         error: ValueError | None = None
         for i, pts in enumerate(tries):
             try:
