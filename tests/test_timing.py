@@ -144,6 +144,49 @@ def test_each_uav_at_its_own_pace_when_the_teams_legs_differ():
     assert team.t1 == pytest.approx(knot_times(dense, lim)[-1], rel=0.25)
 
 
+def test_the_soonest_timing_is_made_first_and_the_others_only_when_asked_for(monkeypatch):
+    """:func:`soonest_timings` (a re-plan's candidates: two point sets, the dense and the smooth
+    curve, common and own pace) yields the same pieces in the same order as timing all eight and
+    sorting them by arrival, and times for the first only those whose first schedule arrives
+    before it (a schedule is only ever stretched): here 4 of the 8; once ``stop()`` is true, none."""
+    import staghunt.trajectory.quintic as quintic
+
+    lim = VehicleLimits()
+    a = np.array([[0.0, 0.0, 10.0], [8.0, 1.0, 10.0], [30.0, 0.0, 10.0], [40.0, 12.0, 11.0], [70.0, 10.0, 10.0]])
+    b = a + [0.0, 15.0, 0.0]
+    b[2] += [3.0, -2.0, 1.0]
+    sets = [np.stack([a, b]), np.stack([a, b])[:, [0, 2, 3, 4]]]
+    v0 = np.array([[2.0, 0.5, 0.0], [2.0, 0.0, 0.2]])
+    spacings = (quintic.DENSE_SPACING, quintic.SMOOTH_SPACING)
+    every = sorted(((s, quintic.timed_path(p, 3.0, lim, v0, None, own=own, spacing=sp))
+                    for s, p in enumerate(sets) for sp in spacings for own in (False, True)), key=lambda c: c[1].t1)
+    made = []
+    stretched = quintic._stretched
+    monkeypatch.setattr(quintic, "_stretched", lambda *a, **k: made.append(1) or stretched(*a, **k))
+    lazy = quintic.soonest_timings(sets, 3.0, lim, v0, spacings=spacings)
+    s, first = next(lazy)
+    speed0 = np.linalg.norm(v0, axis=-1)
+    bounds = [3.0 + quintic._schedule(p, lim, speed0, own, sp)[1][-1] for p in sets for sp in spacings
+              for own in (False, True)]
+    assert len(made) == sum(b < first.t1 for b in bounds) == 4 < len(every) == 8
+    rest = list(lazy)
+    assert len(made) == 8
+    assert [s for s, _ in [(s, first)] + rest] == [s for s, _ in every]
+    for (_, p), (_, q) in zip([(s, first)] + rest, every):
+        assert p.t1 == q.t1 and p.spacing == q.spacing
+        np.testing.assert_array_equal(p.knots, q.knots)
+        np.testing.assert_array_equal(p.points, q.points)
+    stopped = []  # stopped after the first: nothing more is timed or yielded
+    after_first = quintic.soonest_timings(sets, 3.0, lim, v0, spacings=spacings, stop=lambda: bool(stopped))
+    assert next(after_first)[1].t1 == first.t1
+    stopped.append(1)
+    assert list(after_first) == []
+    with pytest.raises(ValueError, match="stopped at its deadline"):
+        next(quintic.soonest_timings(sets, 3.0, lim, v0, spacings=spacings, stop=lambda: True))
+    with pytest.raises(ValueError, match="no timing"):  # none meets the limits: the first's error
+        next(quintic.soonest_timings(sets, 0.0, VehicleLimits(), np.array([[-1.77, -5.52, -2.59]] * 2), max_tries=2))
+
+
 def test_a_uav_that_waits_while_its_team_mate_moves_does_not_slow_the_team_to_a_crawl():
     """A plan where one UAV stays put for a leg while its team-mate flies (a re-plan around a
     known motion made such a plan: benchmarks/replan.py, scenario-2 episode 12, timed to 418 s

@@ -8,9 +8,9 @@ in, carried to ``t_s`` (:meth:`Start.measured`). It
 1. builds the problem the team knows: the goals (or, for a receding-horizon re-plan, where the
    current plan is ``horizon`` seconds on), the switch positions as starts (moving: their
    lead-in points, each UAV's stopping distance at the timing's braking rate ahead along its
-   velocity), the static and
-   sensed obstacles and the swept volumes of the known motions over the predicted conflicts'
-   windows, with the margins grown for the tracking allowance (:func:`~staghunt.flight.known.game_problem`);
+   velocity), the static and sensed obstacles and the swept volumes of the known motions over
+   the predicted conflicts' windows, margins grown for the tracking allowance
+   (:func:`~staghunt.flight.known.game_problem`);
 2. warm-starts the game from the current plan, pushed clear of a new obstacle that cuts it, and runs
    the rounds until they converge or the deadline's game share is spent (:func:`staghunt.solvers.improve.anytime_rounds`);
 3. times the new paths from the measured state and accepts them with the one safety judge
@@ -28,6 +28,7 @@ over the conflict horizon (a stop would cut a sidestep short), or a stop to hove
 
 from __future__ import annotations
 
+import itertools
 import math
 import threading
 from concurrent.futures import ThreadPoolExecutor
@@ -48,7 +49,7 @@ from staghunt.flight.known import (Acceptance, KnownWorld, Start, covers, game_p
 from staghunt.flight.records import Laps, ReplanStatus, Solved
 from staghunt.scenario import Scenario, SolverSettings
 from staghunt.solvers.improve import Cancelled, Deadline, anytime_rounds, certify_and_improve
-from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, Piece, Reference, timings
+from staghunt.trajectory.quintic import DENSE_SPACING, SMOOTH_SPACING, Reference, soonest_timings
 from staghunt.trajectory.team import TeamTrajectory, end_time
 from staghunt.trajectory.timing import turn_backs
 from staghunt.world.dynamic import Dynamics
@@ -66,9 +67,10 @@ MAX_STRETCH = 2.0
 GAME_SHARE = 0.4
 """Share of the deadline the game's rounds may take; the rest is for timing, acceptance and
 the certificate."""
-RESERVE_SHARE = 0.10
+RESERVE_SHARE = 0.075
 """Share of the deadline kept free at its end: no certificate, local pass or timing of a plan
-starts that its running estimate says would end in it (the estimates' errors end there)."""
+starts that its running estimate says would end in it (the estimates' errors end there); a
+timing still running halfway into it stops, and the game's own plan flies."""
 CERTIFICATE_PRIOR = 0.25
 """A flight's first estimate of a certificate's wall time, as a share of the deadline."""
 REST_SHARE = 0.85
@@ -237,10 +239,13 @@ class Replanner:
             self.fallback_s = max(laps.parts["fallback"], FALLBACK_DECAY * self.fallback_s)
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full
+        # a plan other than the game's, still being timed halfway into the reserve, is not flown
+        hard = Deadline(None if deadline.end is None else deadline.end - 0.5 * RESERVE_SHARE * full)
         if deadline.end is not None:
             deadline = Deadline(deadline.end - RESERVE_SHARE * full, deadline.certificate_s, self.steps)
         done = certify_and_improve(
-            chosen.sub, chosen.out.plan, chosen.plan, lambda p: self._timed(chosen.sub, p, *chosen.timing)[0],
+            chosen.sub, chosen.out.plan, chosen.plan,
+            lambda p: self._timed(chosen.sub, p, *chosen.timing, stop=lambda: hard.passed)[0],
             self.search, cfg.certify_options(), cfg.certify_rounds, self.rng, self._certifier.run_swarm,
             self._certifier, self._solo, chosen.azimuth, self._workers, deadline)
         self.certificate_s = deadline.certificate_s
@@ -329,18 +334,20 @@ class Replanner:
         return planner
 
     def _timed(self, sub: Scenario, plan: np.ndarray, start: Start, max_stretch: float, lead: np.ndarray | None,
-               tail: np.ndarray | None, head: Any = None
+               tail: np.ndarray | None, head: Any = None, stop: Callable[[], bool] | None = None
                ) -> tuple[Reference | None, list[str], list[tuple[str, float, float]] | None]:
         """``plan`` ``(N, K, 3)`` of ``sub`` timed from ``start`` (through the ``lead`` points,
         then ``tail`` ``(N, M, 3)`` absolute, the current plan beyond a receding horizon;
         ``head``: a stop piece flown before, from whose rest the plan starts), on the team's
-        common schedule and with each UAV at its own pace, the dense curve and the smooth one
-        (:func:`~staghunt.trajectory.quintic.timings`), and again without the game's waypoints
-        that turn a UAV back at the lead-in's end. Returns the new plan (the soonest timing that
+        common schedule and with each UAV at its own pace, the dense curve and the smooth one,
+        and again without the game's waypoints that turn a UAV back at the lead-in's end
+        (:func:`~staghunt.trajectory.quintic.soonest_timings`: a timing is made only when every
+        sooner one has failed the acceptance). Returns the new plan (the soonest timing that
         meets the limits within ``max_stretch`` and passes the acceptance, at
         :meth:`~staghunt.flight.known.Acceptance.problem_margins`, and at its own margins away
         from the obstacles the plan starts near), else ``None``, with the sooner one's problems
-        and the conflicts with known motions found (``None``: the timing failed)."""
+        and the conflicts with known motions found (``None``: the timing failed). ``stop()`` true
+        before a timing or a check: ``None``, stopped."""
         sc = self.scenario
         goals = to_absolute(sub.world.terrain, sub.goals()[:, None])
         front = start.pos[:, None] if lead is None else np.stack([start.pos, lead], axis=1)
@@ -349,21 +356,15 @@ class Replanner:
         # also timed without the game's points that turn a UAV back at the lead-in's end
         drop = turn_backs(points, 1, TURN_BACK_POINTS) if lead is not None else 0
         tries = [points] + ([np.delete(points, np.s_[2:2 + drop], axis=1)] if drop else [])
-        pieces: list[tuple[Piece, bool]] = []  # (timing, off the game's polyline)
-        error: ValueError | None = None
-        for i, pts in enumerate(tries):
-            try:
-                found = timings(pts, start.t_s, sc.vehicle, start.vel, start.acc, max_stretch=max_stretch,
-                                spacings=(DENSE_SPACING, SMOOTH_SPACING))
-            except ValueError as exc:
-                error = error or exc
-                continue
-            pieces += [(q, i > 0 or q.spacing > DENSE_SPACING) for q in found]
-        if not pieces:
-            return None, [str(error)], None
-        pieces.sort(key=lambda c: c[0].t1)
+        order = soonest_timings(tries, start.t_s, sc.vehicle, start.vel, start.acc, max_stretch=max_stretch,
+                                spacings=(DENSE_SPACING, SMOOTH_SPACING), stop=stop)
+        try:
+            pieces = itertools.chain([next(order)], order)
+        except ValueError as exc:
+            return None, [str(exc)], None
         first: tuple[list[str], list[tuple[str, float, float]]] | None = None
-        for piece, loose in pieces:  # the sooner timing first; the next if its curve breaks a margin
+        for i, piece in pieces:  # the sooner timing first; the next if its curve breaks a margin (none once stopped)
+            loose = i > 0 or piece.spacing > DENSE_SPACING  # off the game's polyline
             margins = self.acceptance.problem_margins(sub.costs.min_clearance, loose)
             new = Reference((head, piece) if head is not None else (piece,))
             verdict = self.acceptance.check(new, new.pieces[0].t0, piece.t1, margins)
@@ -381,8 +382,7 @@ class Replanner:
                     self.later[id(new)] = tuple(verdict.windows)
                 return new, [], list(verdict.windows)
             first = first or (problems, list(verdict.windows))
-        assert first is not None
-        return None, *first
+        return (None, *first) if first is not None else (None, ["the timing was stopped at its deadline"], None)
 
     def _attempts(self, start: Start, windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
                   tries: int, max_stretch: float, azimuth: float, rng: np.random.Generator, engine: Engine,

@@ -35,9 +35,10 @@ with shared knot times; a quintic interpolating B-spline takes exactly those end
 
 from __future__ import annotations
 
+import heapq
 import math
 from dataclasses import dataclass
-from typing import Literal
+from typing import Callable, Iterator, Literal, Sequence
 
 import numpy as np
 from scipy.interpolate import BSpline, make_interp_spline
@@ -240,6 +241,22 @@ DUPLICATE_M = 0.01
 """A point closer than this (m) to the last kept one, for every UAV, is not timed apart."""
 
 
+def _schedule(points: np.ndarray, limits: VehicleLimits, speed0: np.ndarray, own: bool,
+              spacing: float) -> tuple[np.ndarray, np.ndarray]:
+    """The dense points ``(N, M, 3)`` a timed path of ``points`` ``(N, M0, 3)`` interpolates and
+    their first schedule ``(M,)`` (from 0), before any stretch (:func:`timed_path`; ``speed0``
+    ``(N,)``: the UAVs' speeds at the start)."""
+    # Points within DUPLICATE_M of the last kept one for every UAV are dropped (the exporter's
+    # rule, at a centimetre): a run of millimetre legs (waypoints slid together) otherwise
+    # makes the spline swing wildly. Nobody moving: the start and the goal, a hold.
+    keep = merge_waypoints(points, DUPLICATE_M)
+    dense, _ = split_legs(points[:, keep], spacing)
+    if own and points.shape[0] > 1:
+        base, dense = own_pace(dense, limits, speed0)
+        return dense, base
+    return dense, knot_times(dense, limits, float(speed0.max()))
+
+
 def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                v0: np.ndarray | None = None, a0: np.ndarray | None = None,
                max_tries: int = 20, max_stretch: float = math.inf, own: bool = False,
@@ -262,15 +279,14 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
     N = p.shape[0]
     v0 = np.zeros((N, 3)) if v0 is None else np.asarray(v0, dtype=float)
     a0 = np.zeros((N, 3)) if a0 is None else np.asarray(a0, dtype=float)
-    # Points within DUPLICATE_M of the last kept one for every UAV are dropped (the exporter's
-    # rule, at a centimetre): a run of millimetre legs (waypoints slid together) otherwise
-    # makes the spline swing wildly. Nobody moving: the start and the goal, a hold.
-    keep = merge_waypoints(p, DUPLICATE_M)
-    dense, _ = split_legs(p[:, keep], spacing)
-    if own and N > 1:
-        base, dense = own_pace(dense, limits, np.linalg.norm(v0, axis=-1))
-    else:
-        base = knot_times(dense, limits, float(np.linalg.norm(v0, axis=-1).max()))
+    dense, base = _schedule(p, limits, np.linalg.norm(v0, axis=-1), own, spacing)
+    return _stretched(dense, base, t0, limits, v0, a0, max_tries, max_stretch, spacing)
+
+
+def _stretched(dense: np.ndarray, base: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray,
+               a0: np.ndarray, max_tries: int, max_stretch: float, spacing: float) -> Piece:
+    """:func:`timed_path` from its dense points ``(N, M, 3)`` and first schedule ``(M,)``: the
+    schedule stretched where a limit is broken until none is."""
     v_lim = MARGIN * limits.max_speed
     # The switch state's own acceleration cannot be undone by a slower schedule.
     a_lim = max(MARGIN * limits.max_acceleration, 1.02 * float(np.linalg.norm(a0, axis=-1).max()))
@@ -307,24 +323,65 @@ def timed_path(points: np.ndarray, t0: float, limits: VehicleLimits,
                      f"{a:.3g} m/s^2 after a stretch of {stretch:.3g})")
 
 
+def soonest_timings(point_sets: Sequence[np.ndarray], t0: float, limits: VehicleLimits,
+                    v0: np.ndarray | None = None, a0: np.ndarray | None = None, max_tries: int = 20,
+                    max_stretch: float = math.inf, spacings: tuple[float, ...] = (DENSE_SPACING,),
+                    stop: Callable[[], bool] | None = None) -> Iterator[tuple[int, Piece]]:
+    """Every :func:`timed_path` of each of the teams' paths ``point_sets`` (each ``(N, M, 3)``)
+    at each of ``spacings``, on the team's common schedule and with each UAV at its own pace
+    (:func:`own_pace`; one UAV: the first only), that meets the limits, as ``(index in
+    point_sets, piece)``, soonest first (ties: in the order of ``point_sets``, ``spacings``,
+    common before own); ``ValueError`` (the first one's in that order) if none does.
+
+    A timing is made only when it could still come before the next to yield: a schedule is only
+    ever stretched, so its first schedule's arrival bounds its piece's from below, and timings
+    are made in the order of those bounds. A caller that takes the first piece that passes its
+    checks times only what it needs (the soonest piece is usually the first timed); exhausted,
+    the same pieces in the same order as timing them all and sorting. ``stop()`` true before a
+    timing: none is made, nor another yielded (``ValueError`` if none was)."""
+    first = np.asarray(point_sets[0], dtype=float)
+    v0 = np.zeros((first.shape[0], 3)) if v0 is None else np.asarray(v0, dtype=float)
+    a0 = np.zeros_like(v0) if a0 is None else np.asarray(a0, dtype=float)
+    speed0 = np.linalg.norm(v0, axis=-1)
+    untimed: list[tuple[float, int, int, float, np.ndarray, np.ndarray]] = []  # bound, order, set, spacing, dense, schedule
+    for s, points in enumerate(point_sets):
+        for spacing in spacings:
+            for own in (False, True)[: 2 if first.shape[0] > 1 else 1]:
+                dense, base = _schedule(np.asarray(points, dtype=float), limits, speed0, own, spacing)
+                bound = t0 + float(np.concatenate([[0.0], np.cumsum(np.diff(base))])[-1])  # the first try's arrival
+                untimed.append((bound, len(untimed), s, spacing, dense, base))
+    untimed.sort(key=lambda v: (v[0], v[1]))
+    timed: list[tuple[float, int, int, Piece]] = []  # a heap: arrival, order, set, piece
+    errors: dict[int, ValueError] = {}
+    yielded = False
+    while untimed or timed:
+        if stop is not None and stop():
+            if not yielded:
+                raise ValueError("the timing was stopped at its deadline")
+            return
+        if timed and (not untimed or timed[0][:2] < untimed[0][:2]):
+            _, _, s, piece = heapq.heappop(timed)
+            yielded = True
+            yield s, piece
+            continue
+        _, order, s, spacing, dense, base = untimed.pop(0)
+        try:
+            piece = _stretched(dense, base, t0, limits, v0, a0, max_tries, max_stretch, spacing)
+        except ValueError as exc:
+            errors[order] = exc
+            continue
+        heapq.heappush(timed, (piece.t1, order, s, piece))
+    if not yielded:
+        raise errors[min(errors)]
+
+
 def timings(points: np.ndarray, t0: float, limits: VehicleLimits, v0: np.ndarray | None = None,
             a0: np.ndarray | None = None, max_tries: int = 20, max_stretch: float = math.inf,
             spacings: tuple[float, ...] = (DENSE_SPACING,)) -> list[Piece]:
     """The team's paths :func:`timed_path` at each of ``spacings``, on the team's common schedule
     and with each UAV at its own pace (:func:`own_pace`; one UAV: the first only), those that
-    meet the limits, soonest first (``ValueError``: none does)."""
-    found: list[Piece] = []
-    error: ValueError | None = None
-    for spacing in spacings:
-        for own in (False, True)[: 2 if np.asarray(points).shape[0] > 1 else 1]:
-            try:
-                found.append(timed_path(points, t0, limits, v0, a0, max_tries, max_stretch, own, spacing))
-            except ValueError as exc:
-                error = error or exc
-    if not found:
-        assert error is not None
-        raise error
-    return sorted(found, key=lambda p: p.t1)
+    meet the limits, soonest first (``ValueError``: none does): :func:`soonest_timings`, all."""
+    return [piece for _, piece in soonest_timings([points], t0, limits, v0, a0, max_tries, max_stretch, spacings)]
 
 
 def _planned(base: TeamTrajectory, t_s: float, here: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
