@@ -553,6 +553,30 @@ def test_a_replan_from_close_to_an_obstacle_does_not_come_closer_than_the_reflex
     assert out.plan.state(np.array([out.plan.arrival]))[0][0, 0, 0] > centre[0]  # past it
 
 
+def test_a_timing_stopped_at_its_deadline_gives_no_plan():
+    """The timing of a plan other than the game's (the last step of a re-plan's certify-and-improve
+    loop) stops once its deadline has passed: no further timing or check is made, and no plan is
+    returned (the game's own, accepted already, then flies); the same call without the stop
+    returns the plan."""
+    from staghunt.costs import to_absolute
+    from staghunt.engine import get_engine
+    from staghunt.flight.known import Start
+    from staghunt.flight.replan import Replanner
+
+    sc = load_scenario(SMALL)
+    rp = Replanner(sc, Dynamics(), FIXED, get_engine("numpy"), np.random.default_rng(0))
+    a, b = sc.starts(), sc.goals()  # (N, 3) x, y, h
+    plan = a[:, None] + np.linspace(0.0, 1.0, sc.solver.waypoints + 2)[None, 1:-1, None] * (b - a)[:, None]
+    here = to_absolute(sc.world.terrain, a[:, None])[:, 0]
+    still = Reference((timed_path(np.stack([here, here + [0.0, 0.0, 0.01]], axis=1), 0.0, sc.vehicle),))
+    start = Start(0.0, still, here, np.zeros_like(here), np.zeros_like(here))
+    made = rp._timed(sc, plan, start, 2.0, None, None)
+    assert made[0] is not None and made[1] == []
+    calls = []
+    stopped = rp._timed(sc, plan, start, 2.0, None, None, stop=lambda: calls.append(1) is None)
+    assert stopped == (None, ["the timing was stopped at its deadline"], None) and len(calls) == 1
+
+
 def test_a_stop_and_a_plan_from_rest_record_why_the_swerve_failed():
     """When the plan from the moving state fails and the one from rest after a stop passes, the
     re-plan's record keeps the moving solve's problems: the flight log says why the team
