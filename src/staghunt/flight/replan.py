@@ -70,7 +70,8 @@ the certificate."""
 RESERVE_SHARE = 0.075
 """Share of the deadline kept free at its end: no certificate, local pass or timing of a plan
 starts that its running estimate says would end in it (the estimates' errors end there); a
-timing still running halfway into it stops, and the game's own plan flies."""
+timing still running when it begins stops (one more timing or check at most: a few ms), and the
+game's own plan flies."""
 CERTIFICATE_PRIOR = 0.25
 """A flight's first estimate of a certificate's wall time, as a share of the deadline."""
 REST_SHARE = 0.85
@@ -239,13 +240,12 @@ class Replanner:
             self.fallback_s = max(laps.parts["fallback"], FALLBACK_DECAY * self.fallback_s)
             return Solved(plan, status, spent, tries, problems=problems, windows=used)
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full
-        # a plan other than the game's, still being timed halfway into the reserve, is not flown
-        hard = Deadline(None if deadline.end is None else deadline.end - 0.5 * RESERVE_SHARE * full)
         if deadline.end is not None:
             deadline = Deadline(deadline.end - RESERVE_SHARE * full, deadline.certificate_s, self.steps)
+        inner = deadline  # a plan other than the game's, still being timed when the reserve begins, is not flown
         done = certify_and_improve(
             chosen.sub, chosen.out.plan, chosen.plan,
-            lambda p: self._timed(chosen.sub, p, *chosen.timing, stop=lambda: hard.passed)[0],
+            lambda p: self._timed(chosen.sub, p, *chosen.timing, stop=lambda: inner.passed)[0],
             self.search, cfg.certify_options(), cfg.certify_rounds, self.rng, self._certifier.run_swarm,
             self._certifier, self._solo, chosen.azimuth, self._workers, deadline)
         self.certificate_s = deadline.certificate_s
