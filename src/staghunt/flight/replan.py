@@ -67,7 +67,7 @@ MAX_STRETCH = 2.0
 GAME_SHARE = 0.4
 """Share of the deadline the game's rounds may take; the rest is for timing, acceptance and
 the certificate."""
-RESERVE_SHARE = 0.075
+RESERVE_SHARE = 0.10
 """Share of the deadline kept free at its end: no certificate, local pass or timing of a plan
 starts that its running estimate says would end in it (the estimates' errors end there); a
 timing still running when it begins stops (one more timing or check at most: a few ms), and the
