@@ -242,10 +242,9 @@ class Replanner:
         deadline.certificate_s = self.certificate_s or CERTIFICATE_PRIOR * full
         if deadline.end is not None:
             deadline = Deadline(deadline.end - RESERVE_SHARE * full, deadline.certificate_s, self.steps)
-        inner = deadline  # a plan other than the game's, still being timed when the reserve begins, is not flown
-        done = certify_and_improve(
+        done = certify_and_improve(  # a plan other than the game's, still timed when the reserve begins, is not flown
             chosen.sub, chosen.out.plan, chosen.plan,
-            lambda p: self._timed(chosen.sub, p, *chosen.timing, stop=lambda: inner.passed)[0],
+            lambda p: self._timed(chosen.sub, p, *chosen.timing, stop=lambda: deadline.passed)[0],
             self.search, cfg.certify_options(), cfg.certify_rounds, self.rng, self._certifier.run_swarm,
             self._certifier, self._solo, chosen.azimuth, self._workers, deadline)
         self.certificate_s = deadline.certificate_s
@@ -382,7 +381,8 @@ class Replanner:
                     self.later[id(new)] = tuple(verdict.windows)
                 return new, [], list(verdict.windows)
             first = first or (problems, list(verdict.windows))
-        return (None, *first) if first is not None else (None, ["the timing was stopped at its deadline"], None)
+        assert first is not None  # the first piece is always checked
+        return None, *first
 
     def _attempts(self, start: Start, windows: list[tuple[str, float, float]], warm: np.ndarray, settings: Any,
                   tries: int, max_stretch: float, azimuth: float, rng: np.random.Generator, engine: Engine,

@@ -348,7 +348,7 @@ def soonest_timings(point_sets: Sequence[np.ndarray], t0: float, limits: Vehicle
         for spacing in spacings:
             for own in (False, True)[: 2 if first.shape[0] > 1 else 1]:
                 dense, base = _schedule(np.asarray(points, dtype=float), limits, speed0, own, spacing)
-                bound = t0 + float(np.concatenate([[0.0], np.cumsum(np.diff(base))])[-1])  # the first try's arrival
+                bound = t0 + float(np.cumsum(np.diff(base))[-1])  # the first try's arrival, as _stretched sums it
                 untimed.append((bound, len(untimed), s, spacing, dense, base))
     untimed.sort(key=lambda v: (v[0], v[1]))
     timed: list[tuple[float, int, int, Piece]] = []  # a heap: arrival, order, set, piece
