@@ -683,6 +683,8 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     assert plan is not None and plan.pieces[0].kind == "slow"
     delay = plan.arrival - base.arrival
     assert delay == pytest.approx(next(d for d in YIELD_DELAYS if abs(d - delay) < 1e-6))
+    soonest = rp.fallback.soonest_yield(base, t_s)
+    assert soonest == pytest.approx(base.arrival + min(YIELD_DELAYS)) and soonest <= plan.arrival + 1e-9
     v = rp.acceptance.check(plan, t_s, plan.arrival)
     assert v.safe and not v.windows
     assert rp.acceptance.clear_of_motions(plan, t_s, plan.arrival) and not rp.acceptance.clear_of_motions(
@@ -707,6 +709,14 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     rp = Replanner(replace(sc, dynamics=dyn), dyn, more, get_engine("numba", threads=1), np.random.default_rng(0))
     detour = rp.solve(start, lambda: t_s, 1, windows)
     assert detour.status is ReplanStatus.REPLANNED and detour.plan.arrival > out.plan.arrival + 1.0
+    # a yield is sought only if it could arrive before the moving plan (Fallback.soonest_yield)
+    for soonest, calls in ((t_s, 1), (math.inf, 0)):
+        sought: list[float] = []
+        monkeypatch.setattr(type(rp.fallback), "yield_to", lambda self, b, t, *a, into=sought, **k: into.append(t))
+        monkeypatch.setattr(type(rp.fallback), "soonest_yield", staticmethod(lambda b, t, at=soonest: at))
+        rp = Replanner(replace(sc, dynamics=dyn), dyn, more, get_engine("numba", threads=1), np.random.default_rng(0))
+        again = rp.solve(start, lambda: t_s, 1, windows)
+        assert len(sought) == calls and again.plan.arrival == pytest.approx(detour.plan.arrival)
 
 
 def test_a_yield_of_a_plan_that_ends_short_of_the_goals_counts_as_a_failed_replan():

@@ -90,6 +90,13 @@ class Fallback:
         soon = t_soon()
         return self.stop(base, soon, max(t_s, soon))
 
+    @staticmethod
+    def soonest_yield(base: TeamTrajectory, t_s: float) -> float:
+        """The soonest any :meth:`yield_to` plan from ``t_s`` can arrive (s): a yield's slowed
+        piece ends one of :data:`YIELD_DELAYS` after the piece flown at ``t_s``
+        (:func:`~staghunt.trajectory.quintic.slow_piece`)."""
+        return end_time(base.piece_at(t_s) if isinstance(base, Reference) else base) + min(YIELD_DELAYS)
+
     def yield_to(self, base: TeamTrajectory, t_s: float, deadline: Deadline | None = None,
                  learn: float | None = None) -> Reference | None:
         """The team's current paths flown from ``t_s`` on, slowed in sync to one of
