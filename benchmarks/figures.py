@@ -198,14 +198,23 @@ def combine(op: str, a: Any, b: Any) -> Any:
 
 
 def render(data: Any, expr: str) -> str:
-    """The text of one figure of ``data``: ``PATH [/ PATH] [; OPS]`` (or ``+``, ``-`` between two paths)."""
+    """The text of one figure of ``data``: ``PATH [/ PATH] [; OPS]`` (or ``+``, ``-`` between two paths;
+    the op ``pooled`` sums each side's values before they are combined)."""
     path, _, ops = expr.partition(" ; ")
     parts = BINARY.split(path)
     if len(parts) > 3:
         raise FigureError(f"at most one of ' / ', ' + ', ' - ' in {path!r}")
-    value = resolve(data, parts[0]) if len(parts) == 1 else combine(parts[1], resolve(data, parts[0]), resolve(data, parts[2]))
+    if len(parts) == 1:
+        value = resolve(data, parts[0])
+    else:
+        a, b = resolve(data, parts[0]), resolve(data, parts[2])
+        if "pooled" in ops.split():  # each side summed first: sum(a) / sum(b), not item by item
+            a, b = (sum(map(_number, v)) if isinstance(v, list) else v for v in (a, b))
+        value = combine(parts[1], a, b)
     spec, join, shape = "", " / ", None
     for op in ops.split():
+        if op == "pooled":
+            continue
         if PERCENTILE.fullmatch(op):
             if not isinstance(value, list) or not value:
                 raise FigureError(f"{op} needs several values; {path!r} gives {'none' if value == [] else 'one'}")

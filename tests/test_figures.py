@@ -163,6 +163,7 @@ def test_unmarking_a_real_readme_figure_fails() -> None:
     ("runs[0].wall_s + runs[1].wall_s ; .2f", "216.57"),
     ("runs[label=old].wall_s - runs[label=new].wall_s ; .1f", "53.8 / 19.6"),
     ("runs[1].wall_s / runs[0].wall_s ; % .0f", "166"),
+    ("runs[label=new].wall_s / runs[*].wall_s ; pooled % .1f", "41.3"),  # (81.37 + 93.8) / 423.77
     ("runs[0].label", "new"),
     ("machine.load[1]", "1.5"),
     ("runs[label=new].wall_s ; max <=90?met:missed_by_far", "missed by far"),
