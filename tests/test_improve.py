@@ -211,6 +211,29 @@ def test_a_plan_cut_by_an_obstacle_is_pushed_clear_to_the_side_it_passed():
     assert pushed_clear(model, out) is out  # clear already: as it is
 
 
+def test_rounds_that_end_cutting_an_obstacle_end_pushed_clear(monkeypatch):
+    """A re-plan's rounds (``repair``) whose last plan still cuts the pop-up (here rounds that
+    change nothing, from a warm plan already clear, then cut again by UAV1's last reply) return
+    that plan pushed clear, feasible and with its costs, one evaluation more; without
+    ``repair``, as the rounds ended."""
+    import staghunt.solvers.improve as improve
+    from staghunt.solvers.game import RoundsOutcome
+
+    sc, plan = _cut(load_scenario(SMALL))
+    model, engine = CostModel.from_scenario(sc), get_engine("numpy")
+    J = engine.evaluate(model, plan[None]).total[0]
+    assert not np.all(np.isfinite(J))
+    monkeypatch.setattr(improve, "best_response_rounds", lambda *a, **k: RoundsOutcome(plan.copy(), J, 100, [], 1, False))
+    settings = sc.solver.with_(particles=20, iterations=10)
+    out = anytime_rounds(model, plan, settings, np.random.default_rng(3), engine.run_swarm, engine, 10_000,
+                         Deadline(), repair=True)
+    assert np.array_equal(out.plan, pushed_clear(model, plan)) and out.evaluations == 101
+    np.testing.assert_array_equal(out.costs, engine.evaluate(model, out.plan[None]).total[0])
+    assert np.all(np.isfinite(out.costs))
+    kept = anytime_rounds(model, plan, settings, np.random.default_rng(3), engine.run_swarm, engine, 10_000, Deadline())
+    assert np.array_equal(kept.plan, plan) and not np.all(np.isfinite(kept.costs))
+
+
 def test_the_rounds_of_a_cut_plan_start_from_it_pushed_clear():
     """A re-plan's rounds (``repair``) from a plan a pop-up cuts, stopped after their first
     reply: the plan they return is feasible, and UAV2's part is the pushed plan's."""
