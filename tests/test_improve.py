@@ -212,10 +212,9 @@ def test_a_plan_cut_by_an_obstacle_is_pushed_clear_to_the_side_it_passed():
 
 
 def test_rounds_that_end_cutting_an_obstacle_end_pushed_clear(monkeypatch):
-    """A re-plan's rounds (``repair``) whose last plan still cuts the pop-up (here rounds that
-    change nothing, from a warm plan already clear, then cut again by UAV1's last reply) return
-    that plan pushed clear, feasible and with its costs, one evaluation more; without
-    ``repair``, as the rounds ended."""
+    """A re-plan's rounds (``repair``) whose last plan still cuts the pop-up (stand-in rounds
+    that end on the cut plan) return that plan pushed clear, feasible and with its costs, one
+    evaluation more; without ``repair``, as the rounds ended."""
     import staghunt.solvers.improve as improve
     from staghunt.solvers.game import RoundsOutcome
 
