@@ -110,6 +110,15 @@ def test_certificate_rounds_adopt_a_better_reply_and_keep_the_plan_flown():
     quick = certify_and_improve(sc, plan, "first", accept, search, options, 0, np.random.default_rng(5),
                                 engine.run_swarm, engine, engine, np.pi / 4, deadline=roomy)
     assert quick.certificate is not None and not quick.certificate.complete and roomy.certificate_s == 0.0
+    # With the UAVs' searches side by side, it runs to the end: every UAV's gap (and better
+    # reply) is found, its time enters the estimate, and the verdict is the same.
+    pinned = get_engine("numba", threads=1)
+    roomy = Deadline.after(600.0)
+    full = certify_and_improve(sc, plan, "first", accept, search, options, 0, np.random.default_rng(5),
+                               pinned.run_swarm, pinned, pinned, np.pi / 4, workers=2, deadline=roomy)
+    assert full.certificate is not None and full.certificate.complete and roomy.certificate_s > 0.0
+    assert not full.certificate.is_equilibrium and full.certificate.max_relative_gap >= quick.certificate.max_relative_gap
+    assert all(u.best is not None for u in full.certificate.uavs)
     # Time for one certificate only: its better replies are not adopted (the plan they would
     # make could not be certified before the deadline, and adopting them is not watched by it).
     # UAV 2 6 m out of the formation: the plan still fails its certificate after the local passes.
