@@ -218,8 +218,8 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
     ``refute``: only the verdict and the replies found matter here), so a failed one leaves
     time for the next round; a refuted certificate's largest gap is the largest found until it
     stopped. With ``workers`` side by side a certificate runs to the end: its UAVs' searches run
-    at once, so one stopped at its first refutation took about as long as a full one (21 and
-    22 ms median, 3 UAVs on two cores), and the full one has every UAV's better reply for the
+    at once, so one stopped at its first refutation took about as long as a full one (21 against
+    23 ms median, 3 UAVs on two cores), and the full one has every UAV's better reply for the
     next round to adopt (scenario 2's first re-plans on two cores: 71.0 of 95 certified against
     67.6, seven alternated runs; on one core the other way, 51 against 59: benchmarks/JOURNAL.md,
     "Closed loop: full certificates on two cores"). Flying a plan
