@@ -209,8 +209,8 @@ class Replanner:
         rest = second[0] if second is not None else None
         spent = first.spent + (rest.spent if rest is not None else 0)
         tries = first.tries + (rest.tries if rest is not None else 0)
-        # known motions in the way: a yield (sought until the plan from rest would end) if no later than the
-        yielded = None  # moving plan, and sought only if it could be (Fallback.soonest_yield)
+        # known motions in the way: a yield, sought only if one could arrive no later than the moving plan
+        yielded = None  # (Fallback.soonest_yield), until the plan from rest would end
         if first.windows and fallback and not at_rest and (
                 first.plan is None or first.plan.arrival >= self.fallback.soonest_yield(base, t_s)):
             yielded = self.fallback.yield_to(base, t_s, Deadline(rest_args[-1]),
