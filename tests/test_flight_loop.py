@@ -668,6 +668,7 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     lets the truck pass, clear of it; the moving solve's detour round the truck's swept window
     passes too but arrives later, so the re-plan sends the yield (no stop, no detour)."""
     from staghunt.engine import get_engine
+    from staghunt.flight import fallback
     from staghunt.flight.fallback import YIELD_DELAYS
     from staghunt.flight.known import Start
     from staghunt.flight.replan import Replanner
@@ -685,6 +686,15 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     assert delay == pytest.approx(next(d for d in YIELD_DELAYS if abs(d - delay) < 1e-6))
     soonest = rp.fallback.soonest_yield(base, t_s)
     assert soonest == pytest.approx(base.arrival + min(YIELD_DELAYS)) and soonest <= plan.arrival + 1e-9
+    # only the delays arriving by `by` are tried (each candidate's check runs to its end)
+    tried: list[float] = []
+    monkeypatch.setattr(fallback, "slow_piece", lambda *a, into=tried: into.append(a[3]) or slow_piece(*a))
+    assert rp.fallback.yield_to(base, t_s, by=plan.arrival).arrival == pytest.approx(plan.arrival)
+    shorter = [d for d in YIELD_DELAYS if d < delay - 1e-6]
+    assert sorted(set(tried)) == shorter + [YIELD_DELAYS[len(shorter)]]
+    tried.clear()
+    assert rp.fallback.yield_to(base, t_s, by=plan.arrival - 0.5) is None and sorted(set(tried)) == shorter
+    monkeypatch.undo()
     v = rp.acceptance.check(plan, t_s, plan.arrival)
     assert v.safe and not v.windows
     assert rp.acceptance.clear_of_motions(plan, t_s, plan.arrival) and not rp.acceptance.clear_of_motions(
@@ -712,11 +722,13 @@ def test_a_team_yields_to_a_crossing_truck_on_the_same_paths_when_that_is_sooner
     # a yield is sought only if it could arrive before the moving plan (Fallback.soonest_yield)
     for soonest, calls in ((t_s, 1), (math.inf, 0)):
         sought: list[float] = []
-        monkeypatch.setattr(type(rp.fallback), "yield_to", lambda self, b, t, *a, into=sought, **k: into.append(t))
+        monkeypatch.setattr(type(rp.fallback), "yield_to",
+                            lambda self, b, t, *a, into=sought, **k: into.append(k["by"]))
         monkeypatch.setattr(type(rp.fallback), "soonest_yield", staticmethod(lambda b, t, at=soonest: at))
         rp = Replanner(replace(sc, dynamics=dyn), dyn, more, get_engine("numba", threads=1), np.random.default_rng(0))
         again = rp.solve(start, lambda: t_s, 1, windows)
         assert len(sought) == calls and again.plan.arrival == pytest.approx(detour.plan.arrival)
+        assert all(math.isfinite(by) for by in sought)  # bounded by the moving plan's arrival
 
 
 def test_a_yield_of_a_plan_that_ends_short_of_the_goals_counts_as_a_failed_replan():

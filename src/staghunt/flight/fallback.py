@@ -51,6 +51,11 @@ def rest_time(base: TeamTrajectory, t: float, within: float = 60.0) -> float:
     return float(grid[still[0]]) if still.size else t + within
 
 
+def _piece_end(base: TeamTrajectory, t: float) -> float:
+    """When the piece of ``base`` flown at ``t`` ends (s): what a yield from ``t`` slows."""
+    return end_time(base.piece_at(t) if isinstance(base, Reference) else base)
+
+
 def _is_stop_under(base: TeamTrajectory, t: float, n: int) -> bool:
     """Whether UAV ``n`` of ``base`` flies a stop piece at ``t``."""
     traj, row = base, n
@@ -95,24 +100,29 @@ class Fallback:
         """The soonest any :meth:`yield_to` plan from ``t_s`` can arrive (s): a yield's slowed
         piece ends one of :data:`YIELD_DELAYS` after the piece flown at ``t_s``
         (:func:`~staghunt.trajectory.quintic.slow_piece`)."""
-        return end_time(base.piece_at(t_s) if isinstance(base, Reference) else base) + min(YIELD_DELAYS)
+        return _piece_end(base, t_s) + min(YIELD_DELAYS)
 
     def yield_to(self, base: TeamTrajectory, t_s: float, deadline: Deadline | None = None,
-                 learn: float | None = None) -> Reference | None:
+                 learn: float | None = None, by: float = math.inf) -> Reference | None:
         """The team's current paths flown from ``t_s`` on, slowed in sync to one of
         :data:`YIELD_FACTORS` of their pace and sped up again
         (:func:`~staghunt.trajectory.quintic.slow_piece`) so as to arrive the first of
         :data:`YIELD_DELAYS` later that passes the acceptance to the end (sought until
         ``deadline``), and the commit rule's check if ``learn`` is given (a UAV that misses the
         yield flies on at its pace for ``learn`` seconds: :meth:`Acceptance.stragglers`);
-        ``None`` if none does. Path-velocity decomposition (Kant
-        and Zucker 1986): the paths keep every margin to what does not move and to each other,
-        and only the timing changes, so that a known motion crossing them passes first; the
-        paths, and so the game's costs, are the plan's."""
+        ``None`` if none does. Only delays arriving by ``by`` (s) are tried: a re-plan with a
+        moving plan arriving then wants no later yield, and each candidate's check runs to its
+        end (a predicted conflict's yield search took 35 ms of a 200 ms deadline where a moving
+        plan won, 17 ms with the bound: benchmarks/JOURNAL.md, "Closed loop: yields bounded by
+        the moving plan"). Path-velocity decomposition (Kant and Zucker 1986): the paths keep
+        every margin to what does not move and to each other, and only the timing changes, so
+        that a known motion crossing them passes first; the paths, and so the game's costs, are
+        the plan's."""
         acc = self.acceptance
         if not acc.dyn.known_motion or not acc.check(base, t_s, end_time(base), motions=False).safe:
             return None  # blocked by what does not move: no timing helps
-        for delay in YIELD_DELAYS:
+        last = _piece_end(base, t_s)
+        for delay in (d for d in YIELD_DELAYS if last + d <= by):
             for factor in YIELD_FACTORS:
                 if deadline is not None and deadline.passed:
                     return None
