@@ -50,14 +50,15 @@ def descent_fits(evaluations: int, n_uavs: int) -> bool:
     return evaluations >= 2 * POWELL_PLANS * n_uavs
 
 
-def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate, engine: CostEngine,
-                  steps: tuple[float, ...] = (1.0,)) -> tuple[np.ndarray | None, int, int]:
+def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate,
+                  engine: CostEngine) -> tuple[np.ndarray | None, int, int]:
     """``plan`` ``(N, K, 3)`` with the better replies of its failed ``cert`` adopted in turn
-    (largest relative gap first): UAV ``n`` moves the first of ``steps`` (shares of the way
-    from its path to its reply) that keeps the plan feasible and lowers its ``J_n`` by more than
-    the certificate's ``epsilon`` with the moves already kept, or stays. Returns the plan
-    (``None`` if no UAV moved), the replies taken and the path evaluations spent (``N`` per plan
-    judged)."""
+    (largest relative gap first), each kept if the plan stays feasible and the UAV gains more than
+    the certificate's ``epsilon`` with the replies already kept. Returns the plan (``None`` if
+    none is kept), the replies kept and the path evaluations spent (``N`` per plan judged).
+    Moving each UAV half way towards its reply first, a damped best response, was tried in the
+    flight's certify-and-improve rounds and not kept (benchmarks/JOURNAL.md, "Closed loop: half
+    steps towards the replies, not kept")."""
     N = plan.shape[0]
     team, J = plan.copy(), engine.evaluate(model, plan[None]).total[0]
     spent, taken = N, 0
@@ -65,14 +66,12 @@ def adopt_replies(model: CostModel, plan: np.ndarray, cert: Certificate, engine:
         u = cert.uavs[n]
         if u.relative <= cert.epsilon or u.deviation is None:
             continue
-        for a in steps:
-            candidate = team.copy()
-            candidate[n] = u.deviation if a == 1.0 else team[n] + a * (u.deviation - team[n])
-            c = engine.evaluate(model, candidate[None])
-            spent += N
-            if c.total_violation[0] == 0 and c.total[0][n] < (1.0 - cert.epsilon) * J[n]:
-                team, J, taken = candidate, c.total[0], taken + 1
-                break
+        candidate = team.copy()
+        candidate[n] = u.deviation
+        c = engine.evaluate(model, candidate[None])
+        spent += N
+        if c.total_violation[0] == 0 and c.total[0][n] < (1.0 - cert.epsilon) * J[n]:
+            team, J, taken = candidate, c.total[0], taken + 1
     return (team if taken else None), taken, spent
 
 

@@ -34,15 +34,6 @@ ESTIMATE_DECAY = 0.8
 first certificate of a call: an estimate grown by one slow or abandoned certificate would
 otherwise stop every later certificate, the only measurements that could bring it down."""
 
-RELAXED = (0.5, 1.0)
-"""The steps towards a better reply that a round of :func:`certify_and_improve` tries, in this
-order, for each UAV it moves: half way first, damping the UAVs' chase of each other's formation
-targets (gaps such as ``[3.7, 1.4]``, then ``[0.9, 3.8]``, ``[1.5, 0.0]``, ``[0.0, 1.1]`` for
-UAVs 2 and 3), then the whole reply. Scenario 2's first re-plans on two cores: 72.3 of 95
-certified against 68.9 with whole replies only (ten alternated runs each), 72.3 with half steps
-only, 70.5 with a third first (benchmarks/JOURNAL.md, "Closed loop: half steps towards the
-replies")."""
-
 Flown = TypeVar("Flown")
 
 
@@ -212,9 +203,9 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
 
     With ``rounds`` > 0, every UAV first makes the certificate's own local search, in passes
     until none gains more than epsilon (or the deadline passes). Then, while a certificate finds
-    better replies and ``rounds`` allow: every reply in turn (largest gap first), a step towards
-    it (:data:`RELAXED`: half way, else whole) that still gains more than epsilon with those
-    already kept and keeps the plan feasible (:func:`~staghunt.solvers.finish.adopt_replies`); if that keeps
+    better replies and ``rounds`` allow: every reply in turn (largest gap first) that still
+    gains more than epsilon with those already kept and keeps the plan feasible
+    (:func:`~staghunt.solvers.finish.adopt_replies`); if that keeps
     fewer than two, the reply of the UAV with the largest gap that keeps the plan feasible, and
     the next certificate keeps that UAV's search (the others fly what it fixed, if it was
     searched to the end); then the local passes again, and the next certificate.
@@ -303,7 +294,7 @@ def certify_and_improve(sub: Scenario, plan: np.ndarray, flown: Flown, accept: C
                  if cert.uavs[n].relative > eps and cert.uavs[n].deviation is not None]
         adopted = None
         if len(order) > 1:  # every reply in turn, kept if it still gains more than epsilon
-            team, taken, spent = adopt_replies(model, plan, cert, judge, RELAXED)
+            team, taken, spent = adopt_replies(model, plan, cert, judge)
             out.spent += spent
             adopted = team if taken > 1 else None
         carried = {}
