@@ -213,8 +213,9 @@ class Replanner:
         yielded = None  # (Fallback.soonest_yield), until the plan from rest would end
         if first.windows and fallback and not at_rest and (
                 first.plan is None or first.plan.arrival >= self.fallback.soonest_yield(base, t_s)):
-            yielded = self.fallback.yield_to(base, t_s, Deadline(rest_args[-1]), self.learn_s if cfg.straggler_check
-                                             else None, by=math.inf if first.plan is None else first.plan.arrival)
+            learn = self.learn_s if cfg.straggler_check else None
+            yielded = self.fallback.yield_to(base, t_s, Deadline(rest_args[-1]), learn,
+                                             by=math.inf if first.plan is None else first.plan.arrival)
             laps.lap("yield")
         if yielded is not None or (first.plan is None and can_defer):
             if yielded is None and first.out is not None:  # a deferral: the next solve goes on from here
