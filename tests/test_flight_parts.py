@@ -636,3 +636,12 @@ def test_a_smooth_curve_is_accepted_at_the_full_margins_a_dense_one_at_the_games
     assert acc.problem_margins(1.1, off_polyline=True).clearance == pytest.approx(full)
     assert acc.problem_margins(3.0, off_polyline=True).clearance == pytest.approx(3.0 - CURVE_SLACK)
     assert acc.problem_margins(1.1, off_polyline=True).separation == acc.margins.separation
+
+
+def test_the_default_deadline_follows_the_team_size_and_gives_way_to_a_fixed_latency_or_a_given_one():
+    measured = FlyConfig()
+    assert [measured.deadline_for(n) for n in (1, 3)] == [pytest.approx(0.215)] * 2
+    assert measured.deadline_for(4) == pytest.approx(0.375) and measured.deadline_for(7) == pytest.approx(0.855)
+    assert measured.deadline_for(8) == measured.deadline_for(24) == pytest.approx(1.0)
+    assert FlyConfig(latency=0.3).deadline_for(8) == pytest.approx(0.3)
+    assert FlyConfig(deadline=0.2).deadline_for(3) == FlyConfig(latency=0.3, deadline=0.2).deadline_for(8) == 0.2

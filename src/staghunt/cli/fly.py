@@ -61,7 +61,7 @@ def add_commands(sub: Any) -> None:
                    help="how long a re-plan takes to take effect: 'measured' (default: its real wall time, while the "
                    "simulated world goes on) or a fixed number of seconds (reproducible runs); flight.json says which")
     p.add_argument("--deadline", type=number_between(0.01, 10, "s"), default=None, metavar="S",
-                   help="a re-plan's time budget (default: the fixed latency, or 0.2 s for 3 UAVs plus 0.16 s per more "
+                   help="a re-plan's time budget (default: the fixed latency, or 0.215 s for 3 UAVs plus 0.16 s per more "
                    "UAV, at most 1 s)")
     p.add_argument("--replan-rate", type=number_between(0, 10, "Hz"), default=None, metavar="HZ",
                    help="receding horizon: re-plans per second with nothing sensed (default 1; 0: only on events)")

@@ -15,10 +15,15 @@ MEASURED = "measured"
 
 
 def auto_deadline(n_uavs: int) -> float:
-    """The default re-plan deadline (s) of a team of ``n_uavs``: 0.2 s for up to three UAVs,
+    """The default re-plan deadline (s) of a team of ``n_uavs``: 0.215 s for up to three UAVs,
     0.16 s more per further UAV, at most 1 s from eight UAVs on (a re-plan's work grows with
-    the team; the issue's latency targets, 0.2 s for 3 UAVs and 1 s for 8)."""
-    return min(1.0, 0.2 + 0.16 * max(0, n_uavs - 3))
+    the team). The latency targets are a p95 of 0.2 s for 3 UAVs and 1 s for 8. A re-plan
+    starts no step whose estimate ends in the deadline's last
+    :data:`~staghunt.flight.replan.RESERVE_SHARE`, so with a deadline of 0.2 s three UAVs' p95
+    was 180 ms and the slowest re-plan 187 ms: a fifth of the certificates' time unused. At
+    0.215 s the p95 is 192-195 ms (benchmarks/JOURNAL.md, "Closed loop: the deadline the
+    latency target allows")."""
+    return min(1.0, 0.215 + 0.16 * max(0, n_uavs - 3))
 
 
 @dataclass(frozen=True)
