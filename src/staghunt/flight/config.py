@@ -20,9 +20,9 @@ def auto_deadline(n_uavs: int) -> float:
     the team). The latency targets are a p95 of 0.2 s for 3 UAVs and 1 s for 8. A re-plan
     starts no step whose estimate ends in the deadline's last
     :data:`~staghunt.flight.replan.RESERVE_SHARE`, so with a deadline of 0.2 s three UAVs' p95
-    was 180 ms and the slowest re-plan 187 ms: a fifth of the certificates' time unused. At
-    0.215 s the p95 is 192-195 ms (benchmarks/JOURNAL.md, "Closed loop: the deadline the
-    latency target allows")."""
+    was 179-182 ms and the slowest event re-plan 183-184 ms, and event plans went uncertified
+    for lack of time. At 0.215 s the p95 is 191-196 ms, and more event plans are certified
+    (benchmarks/JOURNAL.md, "Closed loop: the deadline the latency target allows")."""
     return min(1.0, 0.215 + 0.16 * max(0, n_uavs - 3))
 
 
