@@ -19,10 +19,10 @@ def auto_deadline(n_uavs: int) -> float:
     0.16 s more per further UAV, at most 1 s from eight UAVs on (a re-plan's work grows with
     the team). The latency targets are a p95 of 0.2 s for 3 UAVs and 1 s for 8. A re-plan
     starts no step whose estimate ends in the deadline's last
-    :data:`~staghunt.flight.replan.RESERVE_SHARE`, so with a deadline of 0.2 s three UAVs' p95
-    was 179-182 ms and the slowest event re-plan 183-184 ms, and event plans went uncertified
-    for lack of time. At 0.215 s the p95 is 191-196 ms, and more event plans are certified
-    (benchmarks/JOURNAL.md, "Closed loop: the deadline the latency target allows")."""
+    :data:`~staghunt.flight.replan.RESERVE_SHARE`, so a deadline equal to the target left its
+    last tenth unused and event plans uncertified for lack of time; three UAVs get 0.215 s, whose
+    p95 stays within 0.2 s (the figures: benchmarks/README.md and JOURNAL.md, "Closed loop: the
+    deadline the latency target allows")."""
     return min(1.0, 0.215 + 0.16 * max(0, n_uavs - 3))
 
 
